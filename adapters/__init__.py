@@ -1,0 +1,1 @@
+"""Adapters: one module per port implementation (CSV files, zenoh, MCAP, rerun)."""

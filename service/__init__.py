@@ -1,0 +1,1 @@
+"""Service layer: settings, composition root, command-line interface, the long-running monitor."""
