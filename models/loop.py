@@ -84,6 +84,7 @@ __all__ = [
     "scenario_for_case",
     "simulate_loop",
     "simulate_loops",
+    "fopdt_response",
     "loop_frequency_response",
     "gain_margin",
 ]
@@ -347,7 +348,11 @@ PAPER_STICTION = ChoudhuryStictionSpec(S=7.0, J=5.0)
 #: LuGre valve of Appendix A; force gain (Fs + Fc) / S = 3/14 per % so that its stick band matches S = 7
 #: (see :func:`models.valves.lugre_force_gain_for_stick_band`).
 PAPER_LUGRE = LuGreSpec(params=LuGreParams(), force_gain=lugre_force_gain_for_stick_band(7.0))
-#: Backlash width of the "deadband" case (% of OP span).
+#: Backlash width of the "deadband" case (% of OP span).  Note: backlash alone does not sustain a
+#: limit cycle in this loop (self-regulating plant + PI): the describing-function locus
+#: ``-1/N(A)`` of backlash lies left of ``Re = -1`` while ``L(j omega)`` stays right of -0.62 in
+#: the third quadrant, so the "deadband" case shows slow, lagging responses after each
+#: set-point reversal (the valve must cross the gap) but no sustained oscillation.
 DEADBAND_WIDTH = 7.0
 
 CASES: dict[str, LoopScenario] = {
@@ -410,6 +415,31 @@ def _plant_coefficients(plant: FOPDT, h: float) -> tuple[float, float, float, in
         return a, plant.gain * (1.0 - a), 0.0, 0
     c = 1.0 - plant.tau_s * (1.0 - a) / h  # weight of the end-of-step sample
     return a, plant.gain * (1.0 - a - c), plant.gain * c, d
+
+
+def fopdt_response(plant: FOPDT, u: np.ndarray, h: float, *, hold: str = "foh") -> np.ndarray:
+    """Open-loop response of ``plant`` to input samples ``u[k] = u(k h)``, from rest.
+
+    ``hold="foh"`` treats the input as linear between samples (what :func:`simulate_loop`
+    feeds the plant), ``"zoh"`` as constant over ``[k h, (k+1) h)``.  Exact for such inputs
+    (dead time rounded to a whole number of steps ``h``).  Returns ``y[k] = y(k h)``.
+    """
+    h = _finite("step h", h, minimum=0.0, strict=True)
+    if hold not in ("foh", "zoh"):
+        raise ModelConfigError(f"hold = {hold!r} must be 'foh' or 'zoh'")
+    u = np.asarray(u, dtype=float)
+    a, b0, b1, d = _plant_coefficients(plant, h)
+    if hold == "zoh":
+        d = int(round(plant.dead_time_s / h))
+        b0, b1 = plant.gain * (1.0 - a), 0.0
+    w = np.concatenate([np.zeros(max(d, 1)), u, [u[-1] if u.size else 0.0]])
+    off = max(d, 1) - d  # w[k + off] is the input d steps before step k
+    y = np.zeros(u.size)
+    yk = 0.0
+    for k in range(u.size):
+        y[k] = yk
+        yk = a * yk + b0 * w[k + off] + b1 * w[k + off + 1]
+    return y
 
 
 def simulate_loop(scenario: LoopScenario, *, seed: int) -> LoopSimResult:
