@@ -306,6 +306,8 @@ def gain_margin(plant: FOPDT, controller: PIController) -> float:
 
     th, tau = plant.dead_time_s, plant.tau_s
     kc, ki = abs(controller.kc), controller.ki
+    if kc == 0.0 and ki == 0.0:
+        return math.inf  # no feedback at all
 
     def phase(w: float | np.ndarray) -> float | np.ndarray:
         return -w * th - np.arctan(w * tau) - np.arctan2(ki, kc * w)
