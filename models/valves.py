@@ -352,6 +352,7 @@ class LuGreValve:
     force_gain : force per OP unit, ``> 0``; see :func:`lugre_force_gain_for_stick_band`.
     max_step_s : largest integration sub-step; ``update(op, dt)`` takes ``ceil(dt/max_step_s)``
         equal sub-steps with ``F_e`` interpolated linearly from the previous OP to ``op``.
+    coarse_when_stuck : take stuck intervals far from breakaway in one step (see Notes).
 
     Notes
     -----
@@ -376,18 +377,26 @@ class LuGreValve:
     main error is the first-order lag of the frozen relaxation rate at breakaway, which delays
     breakaway slightly: in the paper's closed loop the limit-cycle amplitude is 13 % too large
     at ``h = 0.02``, 4 % at 0.005 and 1.5 % at the default 0.002 (period: 6 %, 2 %, 0.7 %)
-    relative to ``h = 5e-4``.  A 4000 s closed-loop run takes about 1.5 s at ``h = 0.002``.
-    Stick, breakaway at ``F_s``, sliding at ``F_c + F_v v`` and the slip jump are kept (see the
-    tests).
+    relative to ``h = 5e-4``.  Stick, breakaway at ``F_s``, sliding at ``F_c + F_v v`` and the
+    slip jump are kept (see the tests).
+
+    **Stuck intervals in one step** (``coarse_when_stuck=True``): when the stem is at rest
+    (``|v| < 0.01 vs``) and the net force ``|F_e - k x|`` stays below ``0.8 F_s`` at both ends of
+    the ``update`` interval, the bristles only deflect quasi-statically and the whole interval is
+    one (stable) step.  In the paper's closed loop this changes PV by < 1e-3 and cuts a 4000 s
+    run from ~2.5 s to ~1 s.
     """
 
     def __init__(self, params: LuGreParams | None = None, force_gain: float = 3.0 / 14.0,
-                 *, max_step_s: float = 0.002) -> None:
+                 *, max_step_s: float = 0.002, coarse_when_stuck: bool = True) -> None:
         self.params = params if params is not None else LuGreParams()
         if not isinstance(self.params, LuGreParams):
             raise ModelConfigError(f"LuGre params = {params!r} must be a LuGreParams")
         self.force_gain = _finite("LuGre force_gain", force_gain, minimum=0.0, strict=True)
         self.max_step_s = _finite("LuGre max_step_s", max_step_s, minimum=0.0, strict=True)
+        self.coarse_when_stuck = bool(coarse_when_stuck)
+        self._v_stuck = 1e-2 * self.params.vs
+        self._f_stuck = 0.8 * self.params.fs
         self.reset()
 
     def reset(self) -> None:
@@ -407,6 +416,13 @@ class LuGreValve:
         """Integrate ``dt`` seconds with the applied force ramping from ``force_start`` to ``force_end``."""
         p = self.params
         n = max(1, math.ceil(dt / self.max_step_s - 1e-9))
+        if n > 1 and self.coarse_when_stuck and abs(self.v) < self._v_stuck:
+            # Stuck with a net force far from breakaway at both ends of the interval: the stem
+            # only deflects the bristles quasi-statically, and the (stable) scheme can take the
+            # whole interval in one step.
+            kx = p.spring * self.x
+            if max(abs(force_start - kx), abs(force_end - kx)) < self._f_stuck:
+                n = 1
         h = dt / n
         m_h = p.mass / h
         k_h = p.spring * h

@@ -301,6 +301,14 @@ def test_lugre_position_in_op_units_is_identity_without_friction_load():
     assert abs(mv[-1] - 40.0) <= 1.0 / gain + 1e-9
 
 
+def test_lugre_coarse_stuck_steps_do_not_change_the_trajectory():
+    t = np.arange(0.0, 300.0, DT)
+    ops = 12.0 * np.sin(2 * np.pi * t / 60.0) + 3.0 * np.sin(2 * np.pi * t / 17.0)
+    fine = _drive(LuGreValve(LuGreParams(), 3 / 14, coarse_when_stuck=False), ops)
+    fast = _drive(LuGreValve(LuGreParams(), 3 / 14, coarse_when_stuck=True), ops)
+    assert np.max(np.abs(fast - fine)) < 0.01 * np.ptp(fine)
+
+
 # ------------------------------------------------------------------------- specs and validation
 
 
