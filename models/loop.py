@@ -35,6 +35,16 @@ With the hold and the trapezoidal integral the discretisation error is O((omega 
 the dead time is shorter than ``h/2`` the hold falls back to ZOH.  Records are taken every
 ``sample_time_s`` (``t = 0, Ts, ..., duration - Ts``).
 
+The valve blocks run on the internal step, except the two-parameter stiction model of
+[CTS2005]_, which is defined on sampled OP (its velocity is ``x(k) - x(k-1)``): it is updated once
+per sample and its MV held.  Evaluated on the internal step, the sample-held measurement noise
+(OP jumps of ``Kc * noise`` at each sample against an integral ramp ten times finer) makes the
+OP reverse at almost every sample; since the published flow chart stores a new stick point at
+every reversal, the valve then never travels ``S`` and freezes while the integral winds up
+(OP drifting to +-1000 % with 0.1 PV units of noise).  Once per sample the limit cycle is kept
+up to a noise of about 0.5 PV units (std) in the paper's loop; at 1.0 the same freezing
+begins (a property of the published model with noisy OP, not of the simulator).
+
 References
 ----------
 .. [Aftab2016] M. F. Aftab, M. Hovd, N. E. Huang, S. Sivalingam, IFAC-PapersOnLine 49-7 (2016)
@@ -486,6 +496,12 @@ def simulate_loop(scenario: LoopScenario, *, seed: int) -> LoopSimResult:
     valve = make_valve(sc.valve)
     valve.reset()
     linear = sc.valve is None or isinstance(sc.valve, LinearValveSpec)
+    # The two-parameter stiction model is a sampled-data model: its OP velocity is
+    # x(k) - x(k-1) over the sampling interval [CTS2005].  It is therefore fed the OP once per
+    # sample (the DCS writes the OP to the positioner once per scan) and its MV is held.
+    sampled_valve = isinstance(sc.valve, ChoudhuryStictionSpec)
+    ts = sc.sample_time_s
+    mv = 0.0
     vupd = valve.update
 
     # w[j + d] is the plant input (stem position + load) at internal step j; zeros before t = 0.
@@ -511,7 +527,12 @@ def simulate_loop(scenario: LoopScenario, *, seed: int) -> LoopSimResult:
                 integ = op_min - kc * e
                 u = op_min
             e_prev = e
-            mv = u if linear else vupd(u, h)
+            if linear:
+                mv = u
+            elif not sampled_valve:
+                mv = vupd(u, h)
+            elif s == 0:
+                mv = vupd(u, ts)
             w[k + d] = mv + load_int[k]
             if s == 0:
                 rec_pv[j] = pv

@@ -170,6 +170,16 @@ def test_datadriven_stiction_sustains_a_limit_cycle():
     assert np.mean(np.diff(r.op[1000:]) == 0.0) < 0.01
 
 
+def test_datadriven_stiction_limit_cycle_survives_measurement_noise():
+    # A sticky valve under a noisy OP still stick-slips: the oscillation neither freezes nor
+    # lets the integral wind up.
+    r = simulate_loop(scenario_for_case("stiction-datadriven", noise_std=0.3), seed=4)
+    e = r.pv - r.sp
+    a1, a2 = _amplitude(e[1000:2000]), _amplitude(e[3000:4000])
+    assert a1 > 2.0 and 0.8 < a2 / a1 < 1.25
+    assert np.max(np.abs(r.op)) < 3 * 7.0
+
+
 def test_lugre_stiction_sustains_a_limit_cycle():
     sc = scenario_for_case("stiction-lugre", duration_s=2000.0)
     r = simulate_loop(sc, seed=0)
