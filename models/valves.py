@@ -128,8 +128,8 @@ class ChoudhuryStiction:
     3. While stuck the output holds: ``y(k) = y(k-1)``.
     4. When moving (or on breakaway) ``y(k) = x(k) - v_new (S - J) / 2``.
 
-    Because the model is evaluated on the simulator's internal step, the OP velocity is the
-    difference of successive internal-step OP values.  After ``reset`` the valve is at rest as
+    The OP velocity is the difference of successive ``update`` inputs; the model is meant to be
+    fed sampled OP (:func:`models.loop.simulate_loop` calls it once per sample).  After ``reset`` the valve is at rest as
     if the OP had just reversed (threshold ``S`` whichever way the OP moves first).  The OP is
     not clipped to 0-100 %: the simulators work in deviation variables.
     """
