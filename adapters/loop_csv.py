@@ -3,7 +3,8 @@
 An empty cell is a missing sample.  Time must be finite and strictly increasing; the sample
 time is the median spacing of ``t``, and samples are placed on that regular grid (a sample
 whose time falls between grid points goes to the nearest one; grid points with no sample are
-missing).  ``mode`` is 1 for automatic, anything else for manual / cascade-open.
+missing).  A row stamped with the same time as the previous row is dropped (the first is kept)
+and counted in ``n_duplicates``; time going backwards is an error.  ``mode`` is 1 for automatic, anything else for manual / cascade-open.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ class LoopData:
     mv: np.ndarray | None = None
     mode: np.ndarray | None = None
     n_raw: int = 0
+    n_duplicates: int = 0
 
     def __len__(self) -> int:
         return self.t.size
@@ -49,19 +51,28 @@ def read_loop_csv(path: str | Path) -> LoopData:
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
         raise DataFileError(f"{path}, line {bad[0] + 2}: time 't' is missing or not finite")
+    # a row with the same time as the previous one (a historian artefact: in the shared plant
+    # data a sample is stamped with its predecessor's time every 300 s) is dropped and counted;
+    # its grid point is then a missing sample
+    same = np.diff(t) == 0
+    n_dup = int(same.sum())
+    if n_dup:
+        keep = np.r_[True, ~same]
+        cols = {c: v[keep] for c, v in cols.items()}
+        t = cols["t"]
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)
     if bad.size:
         i = bad[0] + 1
         raise DataFileError(
-            f"{path}, line {i + 2}: time is not increasing (t={t[i]:g} after t={t[i - 1]:g})"
+            f"{path}: time is not increasing (t={t[i]:g} after t={t[i - 1]:g}, data row {i + 1 + n_dup})"
         )
     dt = float(np.median(step))
     idx = np.rint((t - t[0]) / dt).astype(np.int64)
     if np.any(np.diff(idx) == 0):
         i = int(np.flatnonzero(np.diff(idx) == 0)[0]) + 1
         raise DataFileError(
-            f"{path}, line {i + 2}: two samples within one sample time ({dt:g} s) of each other; "
+            f"{path}, data row {i + 1}: two samples within one sample time ({dt:g} s) of each other; "
             "the record is not on a regular grid"
         )
     n = int(idx[-1]) + 1
@@ -83,4 +94,5 @@ def read_loop_csv(path: str | Path) -> LoopData:
         mv=grid(cols["mv"]) if "mv" in cols else None,
         mode=grid(cols["mode"]) if "mode" in cols else None,
         n_raw=int(t.size),
+        n_duplicates=n_dup,
     )

@@ -57,6 +57,7 @@ class LoopReport:
     tdnl: float
     reason: str
     windows: tuple[WindowReport, ...]
+    n_duplicates: int = 0
 
     def to_json(self) -> dict:
         return {
@@ -67,6 +68,7 @@ class LoopReport:
             "verdict": self.verdict,
             "tdnl": _num(self.tdnl),
             "reason": self.reason,
+            "duplicate_rows_dropped": self.n_duplicates,
             "windows": [w.to_json() for w in self.windows],
         }
 
@@ -125,4 +127,5 @@ def analyze_loop(
             diag = diagnose_window(x[sl], fs=fs, config=config)
         reports.append(WindowReport(float(data.t[s]), float(data.t[min(s + window, n) - 1]), diag))
     verdict, tdnl_value, reason = overall_verdict([r.diagnosis for r in reports])
-    return LoopReport(data.source, name, n, data.sample_time_s, verdict, tdnl_value, reason, tuple(reports))
+    return LoopReport(data.source, name, n, data.sample_time_s, verdict, tdnl_value, reason, tuple(reports),
+                      n_duplicates=data.n_duplicates)

@@ -57,3 +57,5 @@ def print_report(report: LoopReport, console: Console | None = None) -> None:
     console.print(table)
     tdnl = "-" if report.tdnl != report.tdnl else f"{report.tdnl:.3f}"
     console.print(f"[bold]verdict: {report.verdict}[/bold]  (TDNL {tdnl}) — {report.reason}")
+    if report.n_duplicates:
+        console.print(f"note: {report.n_duplicates} row(s) with a repeated time stamp dropped (first kept)")
