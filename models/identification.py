@@ -226,9 +226,14 @@ def _thresholds(speed: np.ndarray, S: int, Z: int) -> np.ndarray:
     return np.arange(1, S + 1) * (vmax / Z)
 
 
+def _min_fit_samples(p: int) -> int:
+    # fewer samples than ten per parameter make σ_s (eq. 17) a small-sample accident
+    return 10 * p
+
+
 def _finish_sweep(dv, n, A, b, sF, sF2, sphi, names) -> DvSweep:
     p = A.shape[-1]
-    ok = n > p + 1
+    ok = n >= _min_fit_samples(p)
     theta = np.full((dv.size, p), np.nan)
     sigma = np.full(dv.size, np.nan)
     r2 = np.full(dv.size, np.nan)
@@ -324,7 +329,7 @@ def dv_sweep_reference(
         sel = speed > dv[s]
         ns = int(sel.sum())
         counts[s] = ns
-        if ns <= p + 1:
+        if ns < _min_fit_samples(p):
             continue
         Phi, Fs = phi[sel], F[sel]
         th = np.linalg.lstsq(Phi, Fs, rcond=None)[0]
@@ -406,6 +411,20 @@ def slow_velocity(x: np.ndarray, dt: float, *, span_s: float = 0.1) -> tuple[np.
     return vl, sv
 
 
+def _clean_runs(state: np.ndarray, min_stick: int, min_slide: int) -> np.ndarray:
+    """Drop moving runs shorter than ``min_slide`` (noise) and still runs shorter than
+    ``min_stick`` inside a slide in one direction (a hesitation, not a stick)."""
+    state = state.copy()
+    for a, b, s in _runs(state):
+        if s != 0 and b - a < min_slide:
+            state[a:b] = 0
+    runs = _runs(state)
+    for (_, _, s0), (a, b, s), (_, _, s1) in zip(runs, runs[1:], runs[2:]):
+        if s == 0 and s0 == s1 != 0 and b - a < min_stick:
+            state[a:b] = s0
+    return state
+
+
 def find_breakaways(
     F: np.ndarray,
     x: np.ndarray,
@@ -428,11 +447,13 @@ def find_breakaways(
     vl, sv = slow_velocity(x, dt)
     wl = max(5, int(round(0.1 / dt)) | 1)
     state = np.where(np.abs(vl) > 5 * sv, np.sign(vl), 0).astype(int)
+    min_stick, min_slide = int(min_stick_s / dt), int(min_slide_s / dt)
+    state = _clean_runs(state, min_stick, min_slide)
     xs = savgol_filter(x, 31 if x.size >= 31 else (x.size | 1) - 2, 3, mode="interp")
     sxs = sx * float(np.sqrt(np.sum(savgol_coeffs(31, 3) ** 2)))
     Fs = savgol_filter(F, 31, 1, mode="interp")
-    min_stick, min_slide = int(min_stick_s / dt), int(min_slide_s / dt)
     half = wl // 2
+    min_travel = max(20 * sx, 0.01 * float(np.ptp(xs)))
     out: list[Breakaway] = []
     runs = _runs(state)
     for (a0, a1, sa), (b0, b1, sb) in zip(runs, runs[1:]):
@@ -443,7 +464,13 @@ def find_breakaways(
         if hi - lo < max(10, min_stick // 2):
             lo, hi = a0, a1
         x_stuck = float(np.median(x[lo:hi]))
+        third = max(1, (hi - lo) // 3)
+        drift = abs(float(np.median(x[hi - third : hi]) - np.median(x[lo : lo + third])))
+        if drift > 5 * sx * math.sqrt(2.0 / third) + 4 * sxs:
+            continue  # the stem creeps through this "still" run: not a stick
         seg = sb * (xs[lo:b1] - x_stuck)
+        if seg[-1] < min_travel:
+            continue  # a hesitation: the "slide" does not get anywhere
         above = np.flatnonzero(seg > 4 * sxs)
         if above.size == 0:
             continue

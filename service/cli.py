@@ -24,6 +24,8 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("analyze",), "service.commands.analyze", "diagnose the oscillations of one loop record (CSV)"),
     (("simulate", "loop"), "service.commands.simulate_loop", "simulate a closed loop (FOPDT + PI + valve) to CSV"),
     (("demo",), "service.commands.demo", "run the embedded demo"),
+    (("simulate", "valve"), "service.commands.simulate_valve", "simulate a Karnopp valve bench test (t, p, x) to CSV"),
+    (("identify",), "service.commands.identify", "identify Karnopp valve friction parameters from bench or positioner data"),
 ]
 
 _USER_ERRORS = (PipelineError, ModelError, AdapterError, ServiceError)
