@@ -13,13 +13,12 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy import signal
 
 from .dnl import imf_dnl, tdnl
 from .emd import EMDConfig, emd
 from .errors import PipelineConfigError, SignalError
 from .frequency import instantaneous_frequency
-from .gate import GateConfig, GateResult, oscillation_gate
+from .gate import GateConfig, GateResult, detrend_linear, oscillation_gate
 from .pruning import significant_imfs
 
 __all__ = ["Verdict", "DiagnosisConfig", "WindowDiagnosis", "diagnose_window", "fill_gaps"]
@@ -142,7 +141,7 @@ def diagnose_window(
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason, gate, n_filled=n_filled)
 
-    y = signal.detrend(x, type="linear")
+    y = detrend_linear(x)
     imfs, _ = emd(y, config=config.emd)
     if imfs.shape[0] == 0:
         return WindowDiagnosis("invalid", "EMD found no oscillatory mode", gate, n_filled=n_filled)

@@ -55,7 +55,23 @@ def not_a_knot_spline(xk: np.ndarray, yk: np.ndarray, t: np.ndarray) -> np.ndarr
 
 
 class _BoundedEMD(EMD):
-    """PyEMD's EMD with its cubic envelope built by :func:`not_a_knot_spline` (same numbers, faster)."""
+    """PyEMD's EMD with two shortcuts that leave its numbers unchanged.
+
+    * the cubic envelopes are built by :func:`not_a_knot_spline`;
+    * every sifting iteration of ``EMD.emd`` finds the extrema of the same proto-IMF twice (once
+      to count them, once in ``extract_max_min_spline``); the second time reuses the first result.
+    """
+
+    _last_input: np.ndarray | None = None
+    _last_extrema = None
+
+    def find_extrema(self, T, S):
+        last = self._last_input
+        if last is not None and last.shape == S.shape and np.array_equal(last, S):
+            return self._last_extrema
+        result = super().find_extrema(T, S)
+        self._last_input, self._last_extrema = S.copy(), result
+        return result
 
     def spline_points(self, T, extrema):
         if self.spline_kind != "cubic" or extrema.shape[1] <= 3:

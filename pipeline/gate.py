@@ -109,6 +109,25 @@ def acf(x: np.ndarray, *, max_lag: int | None = None) -> np.ndarray:
     return r / r[0] if r[0] > 0 else np.zeros_like(r)
 
 
+def detrend_linear(x: np.ndarray) -> np.ndarray:
+    """``x`` minus its least-squares straight line (closed form; same as ``scipy.signal.detrend``)."""
+    n = x.size
+    if n < 2:
+        return x - x.mean() if n else x.copy()
+    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
+    slope = np.dot(t, x) / np.dot(t, t)
+    return x - x.mean() - slope * t
+
+
+def robust_amplitude(y: np.ndarray) -> float:
+    """Half the 5 %–95 % percentile range (robust half peak-to-peak), nearest-rank percentiles."""
+    if y.size == 0:
+        return 0.0
+    k5, k95 = int(round(0.05 * (y.size - 1))), int(round(0.95 * (y.size - 1)))
+    part = np.partition(y, (k5, k95))
+    return float(part[k95] - part[k5]) / 2.0
+
+
 def _zero_crossings(y: np.ndarray) -> np.ndarray:
     """Fractional indices where ``y`` changes sign (linear interpolation)."""
     neg = np.signbit(y)
@@ -185,8 +204,8 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
         raise SignalError(f"fs={fs!r} must be > 0")
     n = x.size
     nan = float("nan")
-    y = signal.detrend(x, type="linear") if n >= 2 else x - x.mean()
-    amplitude = float(np.subtract(*np.percentile(y, [95, 5])) / 2.0) if n else 0.0
+    y = detrend_linear(x)
+    amplitude = robust_amplitude(y)
     if n < 4 * config.min_period_samples or not np.any(np.abs(y) > 1e-12 * max(1.0, np.abs(x).max())):
         why = "window too short" if n < 4 * config.min_period_samples else "signal is constant after detrending"
         return GateResult(False, nan, amplitude, nan, nan, 0, None, why)
