@@ -25,6 +25,8 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("simulate", "loop"), "service.commands.simulate_loop", "simulate a closed loop (FOPDT + PI + valve) to CSV"),
     (("demo",), "service.commands.demo", "run the embedded demo"),
     (("simulate", "valve"), "service.commands.simulate_valve", "simulate a Karnopp valve bench test (t, p, x) to CSV"),
+    (("monitor",), "service.commands.monitor", "run the always-on monitor (zenoh in, alerts and status out)"),
+    (("simulate", "plant"), "service.commands.simulate_plant", "publish a simulated mixed plant over zenoh"),
     (("identify",), "service.commands.identify", "identify Karnopp valve friction parameters from bench or positioner data"),
 ]
 

@@ -1,40 +1,103 @@
-"""``loopwatch demo``: the embedded demonstration.
+"""``loopwatch demo``: a simulated plant and the monitor together, on the embedded zenoh default.
 
-Until the always-on monitor lands, the demo simulates the paper's loops and diagnoses each one.
+The monitor opens its embedded peer session (listening on 127.0.0.1, no router); the plant
+simulator connects to it as a second session and publishes a mixed plant (stiction, tuning,
+disturbance, deadband, healthy loops) at high speed.  A third party's view is taken at the
+end: alerts received on ``loopwatch/alerts/**`` and the status queryable.  The final table
+compares, per loop, the truth with the alert state; the exit status is 1 if any loop differs.
 """
 
 from __future__ import annotations
 
 import argparse
-import tempfile
-from pathlib import Path
+import json
+import threading
+import time
 
 from rich.console import Console
 from rich.table import Table
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=None, help="folder for the simulated CSV files (default: a temp dir)")
+    p.add_argument("--loops", type=int, default=12, help="loops in the plant (default 12)")
+    p.add_argument("--duration", type=float, default=6000.0, metavar="S", help="plant seconds (default 6000)")
+    p.add_argument("--speed", type=float, default=60.0, metavar="X", help="times real time (default 60: ~100 s)")
+    p.add_argument("--format", dest="fmt", choices=["single", "json", "binary"], default="binary")
+    p.add_argument("--port", type=int, default=7447, help="the monitor's loopback port (default 7447)")
     p.add_argument("--seed", type=int, default=1)
 
 
 def run(args: argparse.Namespace) -> int:
-    from adapters.csv_table import write_table
-    from adapters.loop_csv import read_loop_csv
-    from models.loop import CASES, simulate_loop
+    import zenoh
 
-    from ..analysis import analyze_loop
+    from adapters.zenoh_session import open_session
 
-    out = args.out or Path(tempfile.mkdtemp(prefix="loopwatch-demo-"))
-    table = Table(title="loopwatch demo: simulated loops (paper §4) and their diagnosis")
-    for col in ("case", "truth", "verdict", "TDNL", "reason"):
-        table.add_column(col)
-    for name, scenario in CASES.items():
-        sim = simulate_loop(scenario, seed=args.seed)
-        path = out / f"{name}.csv"
-        write_table(path, {"t": sim.t, "sp": sim.sp, "pv": sim.pv, "op": sim.op, "mv": sim.mv})
-        report = analyze_loop(read_loop_csv(path))
-        table.add_row(name, sim.truth, report.verdict, f"{report.tdnl:.3f}", report.reason)
-    Console().print(table)
-    print(f"CSV files in {out}")
-    return 0
+    from ..composition import start_monitor
+    from ..settings import load_settings
+    from .simulate_plant import PlantPublisher, expects_alert, make_plant
+
+    console = Console(width=150)
+    endpoint = f"tcp/127.0.0.1:{args.port}"
+    settings = load_settings(None, instance="demo", sample_time_s=1.0,
+                             zenoh={"mode": "peer", "listen": [endpoint]}, analysis={"workers": 1})
+    loops = make_plant(args.loops, duration_s=args.duration, seed=args.seed)
+    truth = Table(title="simulated plant (truth)")
+    for c in ("loop", "case", "truth", "expected alert"):
+        truth.add_column(c)
+    for lp in loops:
+        truth.add_row(lp.loop_id, lp.case, lp.truth, "yes" if expects_alert(lp.truth) else "no")
+    console.print(truth)
+
+    running = start_monitor(settings)
+    plant = open_session("peer", connect=[endpoint])
+    alerts: dict[str, list[dict]] = {}
+    lock = threading.Lock()
+
+    def on_alert(s: zenoh.Sample) -> None:
+        a = json.loads(s.payload.to_bytes())
+        with lock:
+            alerts.setdefault(a["loop"], []).append(a)
+        console.print(f"[bold]alert[/bold] {a['loop']}: {a['state']} (TDNL {a['tdnl']}, period {a['period_s']} s) "
+                      f"window end t={a['window']['end_t']:.0f}")
+
+    sub = plant.declare_subscriber(f"{settings.keys.alert_prefix}/**", on_alert)
+    time.sleep(0.5)  # let the sessions connect and the subscriptions propagate
+    pub = PlantPublisher(plant, loops, prefix=settings.keys.prefix, fmt=args.fmt, speed=args.speed)
+    console.print(f"publishing {args.duration:g} plant seconds of {len(loops)} loops at {args.speed:g}x "
+                  f"({args.duration / args.speed:.0f} s), format {args.fmt}")
+    t = time.monotonic()
+    try:
+        pub.run()
+        running.monitor.drain(60)
+        time.sleep(0.5)
+        replies = list(plant.get(f"loopwatch/{settings.instance}/status", timeout=5.0))
+        status = json.loads(replies[0].ok.payload.to_bytes()) if replies and replies[0].ok else {"loops": {}}
+        alive = [str(r.ok.key_expr) for r in plant.liveliness().get("loopwatch/*/alive", timeout=2.0) if r.ok]
+    finally:
+        sub.undeclare()
+        running.close()
+        plant.close()
+
+    table = Table(title=f"loopwatch demo: truth vs. alert state ({time.monotonic() - t:.0f} s)")
+    for c in ("loop", "case", "truth", "expected", "alert (bus)", "status state", "last verdict", "TDNL",
+              "windows", "rejected", "match"):
+        table.add_column(c)
+    mismatches = 0
+    for lp in loops:
+        st = status["loops"].get(lp.loop_id, {})
+        received = alerts.get(lp.loop_id, [])
+        bus_state = received[-1]["state"] if received else "none"
+        active = bus_state == "raised"
+        ok = active == expects_alert(lp.truth) and (st.get("state") == "alert") == active
+        mismatches += not ok
+        tdnl = st.get("last_tdnl")
+        table.add_row(lp.loop_id, lp.case, lp.truth, "alert" if expects_alert(lp.truth) else "no alert",
+                      bus_state, str(st.get("state")), str(st.get("last_verdict")),
+                      "-" if tdnl is None else f"{tdnl:.3f}", str(st.get("windows")),
+                      str(sum(st.get("rejected", {}).values())), "[green]yes[/green]" if ok else "[red]NO[/red]")
+    console.print(table)
+    tot = status.get("totals", {})
+    console.print(f"published {pub.sent_samples} samples; monitor accepted {tot.get('samples_accepted')}, "
+                  f"rejected {tot.get('rejected')}; liveliness: {alive}; "
+                  f"{len(loops) - mismatches} of {len(loops)} loops match the truth")
+    return 0 if mismatches == 0 else 1

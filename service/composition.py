@@ -1,0 +1,102 @@
+"""Composition root: settings -> monitor core, executor, zenoh adapters.  The only place that
+knows which adapters implement which port."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+from pipeline.diagnosis import DiagnosisConfig
+
+from .monitor import AnalysisConfig, LoopConfig, Monitor, MonitorCore, make_executor
+from .ports import AlertSink, WindowSink
+from .settings import LoopSettings, MonitorSettings, WindowSettings
+
+__all__ = ["loop_config_factory", "build_core", "RunningMonitor", "start_monitor"]
+
+log = logging.getLogger("loopwatch.composition")
+
+
+def _loop_config(settings: MonitorSettings, over: LoopSettings | None) -> LoopConfig:
+    win: WindowSettings = (over.window if over and over.window else settings.window)
+    signal = (over.signal if over and over.signal else settings.analysis.signal)
+    ts = over.sample_time_s if over and over.sample_time_s else settings.sample_time_s
+    length, length_s = win.length, win.length_s
+    if length is None and length_s is None:
+        length = 1024
+    hop, hop_s = win.hop, win.hop_s
+    if hop is None and hop_s is None:
+        hop = max(1, (length or 1024) // 4) if length is not None else None
+        hop_s = None if hop is not None else length_s / 4
+    return LoopConfig(
+        sample_time_s=ts, length=length, hop=hop, length_s=length_s, hop_s=hop_s, lateness=win.lateness,
+        analysis=AnalysisConfig(signal=signal, diagnosis=DiagnosisConfig(threshold=settings.analysis.threshold)),
+    )
+
+
+def loop_config_factory(settings: MonitorSettings):
+    """``loop_id -> LoopConfig`` from the global settings and the per-loop overrides."""
+    default = _loop_config(settings, None)
+    overrides = {k: _loop_config(settings, v) for k, v in settings.loops.items()}
+    return lambda loop_id: overrides.get(loop_id, default)
+
+
+def build_core(settings: MonitorSettings, clock=time.monotonic) -> MonitorCore:
+    """The pure monitor core configured from ``settings``."""
+    return MonitorCore(
+        prefix=settings.keys.prefix,
+        loop_config=loop_config_factory(settings),
+        raise_after=settings.alerts.raise_after,
+        clear_after=settings.alerts.clear_after,
+        time_range=(settings.ingest.time_min, settings.ingest.time_max),
+        max_loops=settings.ingest.max_loops,
+        clock=clock,
+        max_logs_per_s=settings.ingest.max_logs_per_s,
+    )
+
+
+@dataclass
+class RunningMonitor:
+    """A started monitor and what it opened; :meth:`close` tears everything down in order."""
+
+    settings: MonitorSettings
+    monitor: Monitor
+    session: object
+    source: object
+    status: object
+    alert_sink: object
+    extra: list = field(default_factory=list)
+
+    def close(self) -> None:
+        self.source.close()           # stop taking messages
+        self.monitor.close()          # finish queued windows (alerts still go out)
+        self.status.close()           # liveliness DELETE
+        self.session.close()
+
+
+def start_monitor(settings: MonitorSettings, *, alert_sinks: list[AlertSink] = (),
+                  window_sinks: list[WindowSink] = ()) -> RunningMonitor:
+    """Open the zenoh session and wire source -> monitor -> alert/status adapters.
+
+    The worker pool is created before the session is opened, so worker processes never
+    inherit zenoh's threads.
+    """
+    from adapters.zenoh_alerts import ZenohAlertSink
+    from adapters.zenoh_session import open_session
+    from adapters.zenoh_source import ZenohSampleSource
+    from adapters.zenoh_status import ZenohStatus
+
+    executor = make_executor(settings.analysis.workers)
+    if settings.analysis.workers > 0:  # start the worker processes now (before zenoh opens)
+        executor.submit(int, 0).result()
+    z = settings.zenoh
+    session = open_session(z.mode, listen=z.listen, connect=z.connect, gossip=z.gossip)
+    alert_sink = ZenohAlertSink(session, settings.keys.alert_prefix, settings.instance)
+    monitor = Monitor(build_core(settings), executor, alert_sinks=[alert_sink, *alert_sinks],
+                      window_sinks=list(window_sinks), instance=settings.instance)
+    status = ZenohStatus(session, settings.instance, monitor.status)
+    source = ZenohSampleSource(session, settings.keys.prefix, monitor.on_message)
+    log.info("monitor %s: %s on %s%s, samples %s/**, alerts %s/<loop>", settings.instance, z.mode,
+             z.listen, f" -> {z.connect}" if z.connect else "", settings.keys.prefix, settings.keys.alert_prefix)
+    return RunningMonitor(settings, monitor, session, source, status, alert_sink)
