@@ -1,6 +1,13 @@
-"""One window through the whole chain: gate → EMD → IMF pruning → IF → DNL/TDNL → verdict.
+"""One window through the whole chain: gate → (EMD → IMF pruning | band-pass) → IF → DNL → verdict.
 
-This is the method of Aftab, Hovd, Huang & Sivalingam (2016) as published ("paper" method):
+Two methods, chosen by :attr:`DiagnosisConfig.method`:
+
+``robust`` (default): gate, data-quality guards, then the noise-robust DNL with a surrogate
+significance test of :mod:`pipeline.robust`; verdict ``nonlinear`` when the DNL is both
+significant (p <= alpha) and large (>= min_dnl), ``linear`` when it is not significant,
+``uncertain`` in between or when a data-quality guard fails.
+
+``paper``: the method of Aftab, Hovd, Huang & Sivalingam (2016) as published:
 a window that oscillates (Thornhill et al. 2003 gate, :mod:`pipeline.gate`) is decomposed by
 bounded EMD (:mod:`pipeline.emd`), spurious IMFs are pruned by ``lambda > 0.5`` (eq. 7–8), the DNL
 of every kept IMF (eq. 11) and the energy-weighted TDNL (eq. 12) are computed, and the verdict
@@ -20,10 +27,13 @@ from .errors import PipelineConfigError, SignalError
 from .frequency import instantaneous_frequency
 from .gate import GateConfig, GateResult, detrend_linear, oscillation_gate
 from .pruning import significant_imfs
+from .quality import window_guards
+from .robust import RobustConfig, RobustResult, robust_dnl_test
 
 __all__ = ["Verdict", "DiagnosisConfig", "WindowDiagnosis", "diagnose_window", "fill_gaps"]
 
-Verdict = Literal["nonlinear", "linear", "not_oscillating", "invalid"]
+Verdict = Literal["nonlinear", "linear", "uncertain", "not_oscillating", "invalid"]
+Method = Literal["robust", "paper"]
 
 
 @dataclass(frozen=True)
@@ -32,8 +42,10 @@ class DiagnosisConfig:
 
     Parameters
     ----------
+    method : ``robust`` (default) or ``paper`` (Aftab et al. 2016 taken literally).
     gate : oscillation-gate thresholds.
-    emd : sifting budget and IMF cap.
+    emd : sifting budget and IMF cap (paper method).
+    robust : settings of the robust test.
     lambda_threshold : keep IMFs with ``lambda_i`` above this (eq. 8; paper 0.5).
     end_trim_waves : full waves dropped at each end of every IMF before the DNL statistic.
     threshold : TDNL above which the cause is non-linear (Table 1; paper 0.1).
@@ -42,8 +54,10 @@ class DiagnosisConfig:
     max_gap_samples : longest run of missing samples that may be filled.
     """
 
+    method: Method = "robust"
     gate: GateConfig = field(default_factory=GateConfig)
     emd: EMDConfig = field(default_factory=EMDConfig)
+    robust: RobustConfig = field(default_factory=RobustConfig)
     lambda_threshold: float = 0.5
     end_trim_waves: int = 1
     threshold: float = 0.1
@@ -51,6 +65,8 @@ class DiagnosisConfig:
     max_gap_samples: int = 5
 
     def __post_init__(self) -> None:
+        if self.method not in ("robust", "paper"):
+            raise PipelineConfigError(f"method={self.method!r} must be 'robust' or 'paper'")
         if not 0 <= self.lambda_threshold < 1:
             raise PipelineConfigError(
                 f"lambda_threshold={self.lambda_threshold!r} must be in [0, 1): at 1 no IMF would be kept"
@@ -71,8 +87,10 @@ class DiagnosisConfig:
 class WindowDiagnosis:
     """Verdict on one window, with the figures behind it.
 
-    ``imfs_kept`` are 1-based IMF numbers (IMF 1 has the highest frequency), ``dnl`` the DNL of
-    each kept IMF in the same order, ``lambdas`` the eq. 8 figure of every IMF extracted.
+    Paper method: ``imfs_kept`` are 1-based IMF numbers (IMF 1 has the highest frequency),
+    ``dnl`` the DNL of each kept IMF in the same order, ``lambdas`` the eq. 8 figure of every IMF.
+    Robust method: ``dnl`` holds the one DNL of the band-passed oscillation component (also in
+    ``tdnl``), ``robust`` the surrogate threshold and p-value; no IMFs.
     """
 
     verdict: Verdict
@@ -84,6 +102,9 @@ class WindowDiagnosis:
     lambdas: tuple[float, ...] = ()
     imf_frequencies_hz: tuple[float, ...] = ()
     n_filled: int = 0
+    method: Method = "paper"
+    robust: RobustResult | None = None
+    guards: tuple[str, ...] = ()
 
 
 def fill_gaps(x: np.ndarray, *, max_fraction: float, max_gap: int) -> tuple[np.ndarray, int, str | None]:
@@ -114,15 +135,16 @@ def fill_gaps(x: np.ndarray, *, max_fraction: float, max_gap: int) -> tuple[np.n
 
 
 def diagnose_window(
-    x: np.ndarray, *, fs: float, config: DiagnosisConfig = DiagnosisConfig()
+    x: np.ndarray, *, fs: float, config: DiagnosisConfig = DiagnosisConfig(), op: np.ndarray | None = None
 ) -> WindowDiagnosis:
-    """Diagnose the cause of oscillation in one window of a loop signal (paper method).
+    """Diagnose the cause of oscillation in one window of a loop signal.
 
     Parameters
     ----------
     x : 1-D window (PV, OP or control error) on a regular grid; NaN marks a missing sample.
     fs : sampling frequency in Hz.
-    config : see :class:`DiagnosisConfig`.
+    config : see :class:`DiagnosisConfig` (``method`` selects robust or paper).
+    op : the controller output over the same window, when known (saturation guard).
 
     Returns
     -------
@@ -138,6 +160,8 @@ def diagnose_window(
     if problem:
         return WindowDiagnosis("invalid", problem, n_filled=n_filled)
     gate = oscillation_gate(x, fs=fs, config=config.gate)
+    if config.method == "robust":
+        return _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op)
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason, gate, n_filled=n_filled)
 
@@ -173,3 +197,29 @@ def diagnose_window(
     reason = (f"TDNL {total:.3f} <= {config.threshold:g} over {imf_list}: no intra-wave frequency modulation, "
               f"linear cause (tuning or disturbance)")
     return WindowDiagnosis("linear", reason, **common)
+
+
+def _diagnose_robust(x, *, fs, config, gate, n_filled, op) -> WindowDiagnosis:
+    guards = tuple(window_guards(x, op=op))
+    note = ("; " + "; ".join(guards)) if guards else ""
+    common = dict(gate=gate, n_filled=n_filled, method="robust", guards=guards)
+    if not gate.oscillating:
+        return WindowDiagnosis("not_oscillating", gate.reason + note, **common)
+    rc = config.robust
+    r = robust_dnl_test(detrend_linear(x), fs=fs, period_s=gate.period_s, config=rc)
+    common.update(dnl=(r.dnl,), tdnl=r.dnl, robust=r)
+    if not np.isfinite(r.p_value):
+        return WindowDiagnosis("invalid", "the oscillation component has no full wave to measure" + note, **common)
+    figures = f"DNL {r.dnl:.3f} vs {r.threshold:.3f} for a linear oscillation (95 % of {r.n_surrogates} surrogates), p = {r.p_value:.3f}"
+    significant, large = r.p_value <= rc.alpha, r.dnl >= rc.min_dnl
+    if significant and large:
+        if guards:
+            return WindowDiagnosis("uncertain", f"{figures}: would be non-linear, but{note[1:]}", **common)
+        return WindowDiagnosis("nonlinear", f"{figures}: intra-wave frequency modulation beyond noise, "
+                               "non-linear cause (e.g. valve stiction)", **common)
+    if significant:
+        return WindowDiagnosis("uncertain", f"{figures}: significant but small (< {rc.min_dnl:g}){note}", **common)
+    if large and r.p_value <= 2 * rc.alpha:
+        return WindowDiagnosis("uncertain", f"{figures}: borderline significance{note}", **common)
+    return WindowDiagnosis("linear", f"{figures}: no more intra-wave modulation than a linear oscillation, "
+                           f"linear cause (tuning or disturbance){note}", **common)

@@ -33,9 +33,10 @@ def overall_verdict(windows: Sequence[WindowDiagnosis]) -> tuple[Verdict, float,
     """The loop's diagnosis from its windows.
 
     Rules: no analysable window → ``invalid``; fewer than half of the analysable windows
-    oscillating → ``not_oscillating``; otherwise the majority of the oscillating windows decides
-    (a tie counts as ``nonlinear``: a sticking valve should not be missed).  The TDNL reported is
-    the median over the oscillating windows.
+    oscillating (``nonlinear``, ``linear`` or ``uncertain``) → ``not_oscillating``; more
+    ``uncertain`` windows than decided ones → ``uncertain``; otherwise the majority of the decided
+    windows (a tie counts as ``nonlinear``: a sticking valve should not be missed).  The TDNL
+    reported is the median over the oscillating windows.
 
     Returns
     -------
@@ -43,14 +44,18 @@ def overall_verdict(windows: Sequence[WindowDiagnosis]) -> tuple[Verdict, float,
     """
     counts = Counter(w.verdict for w in windows)
     valid = len(windows) - counts["invalid"]
-    osc = counts["nonlinear"] + counts["linear"]
-    summary = ", ".join(f"{counts[k]} {k}" for k in ("nonlinear", "linear", "not_oscillating", "invalid") if counts[k])
+    decided = counts["nonlinear"] + counts["linear"]
+    osc = decided + counts["uncertain"]
+    order = ("nonlinear", "linear", "uncertain", "not_oscillating", "invalid")
+    summary = ", ".join(f"{counts[k]} {k}" for k in order if counts[k])
     if valid == 0:
         reasons = Counter(w.reason for w in windows)
         return "invalid", float("nan"), f"no analysable window ({reasons.most_common(1)[0][0]})"
-    tdnls = [w.tdnl for w in windows if w.verdict in ("nonlinear", "linear") and np.isfinite(w.tdnl)]
+    tdnls = [w.tdnl for w in windows if w.verdict in ("nonlinear", "linear", "uncertain") and np.isfinite(w.tdnl)]
     median = float(np.median(tdnls)) if tdnls else float("nan")
     if osc * 2 < valid:
         return "not_oscillating", median, f"{osc} of {valid} analysable windows oscillate ({summary})"
-    verdict: Verdict = "nonlinear" if counts["nonlinear"] * 2 >= osc else "linear"
-    return verdict, median, f"{counts[verdict]} of {osc} oscillating windows {verdict} ({summary})"
+    if counts["uncertain"] > decided:
+        return "uncertain", median, f"{counts['uncertain']} of {osc} oscillating windows uncertain ({summary})"
+    verdict: Verdict = "nonlinear" if counts["nonlinear"] * 2 >= decided else "linear"
+    return verdict, median, f"{counts[verdict]} of {decided} decided oscillating windows {verdict} ({summary})"

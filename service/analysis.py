@@ -36,7 +36,7 @@ class WindowReport:
         return {
             "start_s": self.start_s,
             "end_s": self.end_s,
-            "oscillating": d.verdict in ("nonlinear", "linear"),
+            "oscillating": bool(g is not None and g.oscillating and d.verdict != "not_oscillating"),
             "period_s": _num(g.period_s) if g else None,
             "regularity": _num(g.regularity) if g else None,
             "imfs_kept": list(d.imfs_kept),
@@ -44,6 +44,11 @@ class WindowReport:
             "tdnl": _num(d.tdnl),
             "verdict": d.verdict,
             "reason": d.reason,
+            "method": d.method,
+            "p_value": _num(d.robust.p_value) if d.robust else None,
+            "dnl_threshold": _num(d.robust.threshold) if d.robust else None,
+            "amplitude": _num(g.amplitude) if g else None,
+            "guards": list(d.guards),
         }
 
 

@@ -74,7 +74,7 @@ def table3():
     out = {}
     for name in PAPER_TABLE3:
         sim = simulate_loop(paper_scenario(name), seed=0)
-        out[name] = diagnose_window(sim.pv, fs=1.0, config=DiagnosisConfig())
+        out[name] = diagnose_window(sim.pv, fs=1.0, config=DiagnosisConfig(method="paper"))
     return out
 
 

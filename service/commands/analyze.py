@@ -11,6 +11,7 @@ from rich.table import Table
 
 from adapters.loop_csv import read_loop_csv
 from pipeline.diagnosis import DiagnosisConfig
+from pipeline.robust import RobustConfig
 
 from ..analysis import LoopReport, analyze_loop
 from ..errors import UsageError
@@ -22,7 +23,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="series to analyse (auto: pv, or op when the file has no pv; error = sp - pv)")
     p.add_argument("--window", type=int, default=None, help="window length in samples (default 4096 or the record)")
     p.add_argument("--hop", type=int, default=None, help="hop between windows in samples (default window/2)")
-    p.add_argument("--threshold", type=float, default=0.1, help="TDNL above which the cause is non-linear (0.1)")
+    p.add_argument("--method", choices=["robust", "paper"], default="robust",
+                   help="robust: band-passed DNL with a surrogate significance test (default); "
+                        "paper: Aftab et al. 2016 as published (EMD, lambda pruning, TDNL > threshold)")
+    p.add_argument("--threshold", type=float, default=0.1,
+                   help="paper method: TDNL above which the cause is non-linear; robust method: smallest DNL "
+                        "reported as non-linear (0.1)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT", help="write the report as JSON")
 
 
@@ -31,7 +37,10 @@ def run(args: argparse.Namespace) -> int:
         v = getattr(args, name)
         if v is not None and v < 1:
             raise UsageError(f"--{name} {v}: must be at least 1 sample")
-    config = DiagnosisConfig(threshold=args.threshold)
+    if not args.threshold > 0:
+        raise UsageError(f"--threshold {args.threshold}: must be > 0")
+    config = DiagnosisConfig(method=args.method, threshold=args.threshold,
+                             robust=RobustConfig(min_dnl=args.threshold))
     data = read_loop_csv(args.file)
     report = analyze_loop(data, signal=args.signal, window=args.window, hop=args.hop, config=config)
     print_report(report)
@@ -44,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
 def print_report(report: LoopReport, console: Console | None = None) -> None:
     console = console or Console()
     table = Table(title=f"{report.source}  ({report.signal}, {report.n_samples} samples at {report.sample_time_s:g} s)")
-    for col in ("start s", "end s", "period s", "r", "IMFs", "DNL", "TDNL", "verdict"):
+    for col in ("start s", "end s", "period s", "r", "IMFs", "DNL", "TDNL", "p", "verdict"):
         table.add_column(col, justify="right" if col not in ("IMFs", "verdict") else "left")
     for w in report.windows:
         j = w.to_json()
@@ -52,7 +61,8 @@ def print_report(report: LoopReport, console: Console | None = None) -> None:
         table.add_row(
             f"{j['start_s']:g}", f"{j['end_s']:g}", fmt(j["period_s"]), fmt(j["regularity"], "{:.2f}"),
             ",".join(map(str, j["imfs_kept"])) or "-",
-            " ".join(fmt(v, "{:.3f}") for v in j["dnl"]) or "-", fmt(j["tdnl"], "{:.3f}"), j["verdict"],
+            " ".join(fmt(v, "{:.3f}") for v in j["dnl"]) or "-", fmt(j["tdnl"], "{:.3f}"),
+            fmt(j["p_value"], "{:.3f}"), j["verdict"],
         )
     console.print(table)
     tdnl = "-" if report.tdnl != report.tdnl else f"{report.tdnl:.3f}"

@@ -32,7 +32,7 @@ def _pv(name: str, step_s: float) -> np.ndarray:
 def test_table3_sensitivity():
     print("\nTable 3 TDNL (verdict) by set-point step time and EMD stop rule")
     for rule, emd_config in RULES.items():
-        cfg = DiagnosisConfig(emd=emd_config)
+        cfg = DiagnosisConfig(method="paper", emd=emd_config)
         for step in (1.0, 10.0, 50.0):
             cells = []
             for name in CASE_NAMES:
@@ -47,6 +47,6 @@ def test_table3_sensitivity():
     print("\nCase (c) by 1000 s segment: loop-mode amplitude, verdict, TDNL, DNL per kept IMF")
     for start in range(0, 4000, 1000):
         seg = slice(start, start + 1000)
-        d = diagnose_window(pv[seg], fs=1.0)
+        d = diagnose_window(pv[seg], fs=1.0, config=DiagnosisConfig(method="paper"))
         amp = np.sqrt(2) * np.std(mode[seg])
         print(f"  {start:4d}-{start + 1000:4d} s  mode amplitude {amp:5.2f}  {d.verdict:9s} TDNL {d.tdnl:.3f}  DNL {np.round(d.dnl, 3)}")

@@ -70,8 +70,8 @@ def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[float, str]:
 
 @pytest.mark.bench
 def test_chain_cost_per_4096_window():
-    bounded = DiagnosisConfig()
-    defaults = DiagnosisConfig(emd=EMDConfig(sifts=0, max_imfs=-1))
+    bounded = DiagnosisConfig(method="paper")
+    defaults = DiagnosisConfig(method="paper", emd=EMDConfig(sifts=0, max_imfs=-1))
     rows = []
     for name, x in window_set().items():
         tb, vb = time_chain(x, bounded)
