@@ -514,17 +514,16 @@ def refine_breakaway(
     Fw = savgol_filter(F[lo:hi], min(31, ((hi - lo) // 2) * 2 - 1), 1, mode="interp") if hi - lo > 31 else F[lo:hi]
     xw = x[lo:hi] - bp.x_stuck
     a = math.exp(-dt / tau) if tau > 0 else 0.0
-    # x_dev(t) for t ≥ t_b: first-order response to (F − F_b)/k ... written per candidate below
+    # For a candidate t_b = sample c: deviation from x_stuck = r1 + J·r2, with r1 the response of
+    # the first-order slide (time constant F_v/k, from rest) to (F(t) − F(t_b))/k, r2 its step
+    # response and J = (F(t_b) − k·x_stuck − dir·F_c)/k the jump, fitted linearly (J·dir ≥ 0).
     cands = np.arange(max(1, (iv - lo) - int(0.8 * (iv - lo))), iv - lo + 1)
     sse = np.full(cands.size, np.inf)
     for j, c in enumerate(cands):
-        # deviation from x_stuck driven by u = (F - k x_stuck_abs - dir Fc)/k; unknown Fc enters
-        # linearly: dev = r1 - (dir·Fc')/k * r2 with r1 the response to (F - F[c])/k + jump term
         u = (Fw[c:] - Fw[c]) / k
         r1 = lfilter([1 - a], [1, -a], u)
         r2 = lfilter([1 - a], [1, -a], np.ones_like(u))
         y = xw[c:]
-        # dev = r1 + J*r2 where J = (F_b - k x_stuck - dir Fc)/k = jump amplitude (>= 0 along dir)
         den = float(r2 @ r2)
         J = float((y - r1) @ r2) / den if den > 0 else 0.0
         if bp.direction * J < 0:
@@ -731,7 +730,7 @@ def identify(
     estimate_mass : regress the mass too (``θ`` of eq. 3); not identifiable at 1 ms with d = 31.
     window, order : Savitzky–Golay ``d`` and ``n`` (Appendix A).
     S, Z : eq. (8).
-    robust_rtol : tolerance of the robust ``δv`` selection on ``σ_s``.
+    robust_rtol, robust_min_fraction : the robust ``δv`` selection (:func:`select_robust`).
     dv_fraction : DV as a fraction of ``|ẋ|max`` (the paper: 1 %).
     """
     for name, val in (("sa", sa), ("m_nominal", m_nominal)):
@@ -745,20 +744,26 @@ def identify(
 
     if signature is not None:
         dts = check_record(signature, window=window)
-        ds = sg_derivatives(signature.x, dts, window=window, order=order)
         Fsig, xsig, tsig = sa * np.asarray(signature.p, float), np.asarray(signature.x, float), np.asarray(signature.t, float)
     else:
         warnings.append(
             "no signature given: the bias (eq. 14), k of eq. (15) and the breakaway points come from the "
             "identification record itself, where the force changes fast at breakaway (less precise)"
         )
-        dts, ds, Fsig, xsig, tsig = dt, d, F, x, np.asarray(data.t, float)
+        dts, Fsig, xsig, tsig = dt, F, x, np.asarray(data.t, float)
 
     # --- signature: k (eq. 15), breakaways (P1, P2), bias (eq. 14)
     bps = find_breakaways(Fsig, xsig, dts)
     vsig, sliding_sig = _sliding(xsig, dts, bps)
-    k15, _ = spring_constant_eq15(Fsig, xsig, vsig, sliding_sig)
-    bias = bias_eq14(bps, k15)
+    try:
+        k15, _ = spring_constant_eq15(Fsig, xsig, vsig, sliding_sig)
+        bias = bias_eq14(bps, k15)
+    except IdentificationError as exc:
+        where = "the signature" if signature is not None else "the identification record (no signature given)"
+        raise IdentificationError(
+            f"{where}: {exc}; a slow triangular test that moves the stem up and down is needed "
+            "for the bias (eq. 14) and the breakaway force (eq. 9)"
+        ) from None
 
     # --- model 1: δv sweep of eq. (4)–(8) on the identification record
     speed = np.abs(d.xd)
