@@ -293,10 +293,12 @@ class RateLimitedLog:
 class LoopBuffer:
     """Grid-aligned ring buffer and sliding-window cutter of one loop.
 
-    Samples are placed on the grid ``origin + k * Ts`` (nearest point).  The ring holds
-    ``length + lateness + hop`` grid points; a window ``[s, s + length)`` is cut when every pacing
-    signal seen so far (OP, PV) has reached its end, or when the newest sample is ``lateness``
-    points beyond it.  A sample for a grid point that no future window can contain is ``late``;
+    Samples are placed on the grid ``origin + k * Ts`` (nearest point; the grid is fixed by the
+    first samples, see :meth:`_try_infer`).  The ring holds ``length + lateness + hop`` grid
+    points; a window ``[s, s + length)`` is cut as soon as every pacing signal seen so far (OP,
+    PV) has every sample of it, else when one of them is ``lateness`` points beyond its end (a
+    window with gaps or late samples waits that long; signals such as SP or mode, often sent on
+    change only, never hold a window back).  A sample for a grid point that no future window can contain is ``late``;
     a second sample for an occupied grid point is a ``duplicate`` (the first is kept).  After a
     gap longer than the ring, windows that would contain no sample are skipped (counted).
     """
@@ -326,16 +328,20 @@ class LoopBuffer:
         self.slot_idx = np.full(self.cap, -(2**62), dtype=np.int64)
 
     def _try_infer(self) -> list[WindowSamples]:
+        """Fix the grid from the first samples: the sample time (configured, a batch's ``dt``, or
+        the median spacing of 8 single samples) and its phase (circular mean of the times modulo
+        the sample time, so that jitter of the first sample does not shift the grid)."""
         batch_dt = next((dt for _, _, _, dt in self.pending if dt is not None), None)
         times = np.concatenate([t for _, t, _, _ in self.pending])
-        ts = self.ts or batch_dt
-        if ts is None:
-            uniq = np.unique(times)
-            if uniq.size < _INFER_SAMPLES:
-                return []
-            diffs = np.diff(uniq)
-            ts = float(np.median(diffs))
-        self._setup(float(ts), float(times.min()))
+        uniq = np.unique(times)
+        if batch_dt is None and uniq.size < _INFER_SAMPLES:
+            return []
+        ts = self.ts or batch_dt or float(np.median(np.diff(uniq)))
+        t_min = float(times.min())
+        ang = 2.0 * np.pi * ((times - t_min) / ts)
+        phase = float(np.angle(np.mean(np.exp(1j * ang)))) / (2.0 * np.pi) * ts
+        self._setup(float(ts), t_min + phase)
+        self.next_start = int(np.rint((t_min - self.origin) / self.ts))
         pending, self.pending = self.pending, []
         out: list[WindowSamples] = []
         for signal, t, v, _ in pending:
@@ -410,11 +416,19 @@ class LoopBuffer:
         out = []
         while True:
             end = self.next_start + self.length - 1
-            pacing = [self.sig_hi[s] for s in _PACING_SIGNALS if s in self.sig_hi]
-            complete = bool(pacing) and min(pacing) >= end
-            if not (complete or self.hi >= end + self.config.lateness):
+            names = [s for s in _PACING_SIGNALS if s in self.sig_hi]
+            if not names:
+                return out
+            hi = [self.sig_hi[s] for s in names]
+            if not (max(hi) >= end + self.config.lateness or (min(hi) >= end and self._full(names))):
                 return out
             out.append(self._cut())
+
+    def _full(self, names: list[str]) -> bool:
+        idx = np.arange(self.next_start, self.next_start + self.length, dtype=np.int64)
+        s = idx % self.cap
+        valid = self.slot_idx[s] == idx
+        return all(bool(np.all(valid & np.isfinite(self.data[n][s]))) for n in names)
 
     def _cut(self) -> WindowSamples:
         idx = np.arange(self.next_start, self.next_start + self.length, dtype=np.int64)
@@ -598,6 +612,7 @@ class MonitorCore:
                 "skipped_windows": b.skipped_windows,
                 "missing_samples_in_windows": st.missing_samples,
                 "samples": dict(b.accepted),
+                "pending_samples": sum(int(v.size) for _, _, v, _ in b.pending),
                 "rejected": dict(b.rejected),
             }
 
@@ -651,11 +666,15 @@ class Monitor:
     alert_sinks, window_sinks : :class:`~service.ports.AlertSink` / :class:`~service.ports.WindowSink`.
     instance : name of this monitor (in the status).
     clock : monotonic clock for latency statistics (window closed -> result applied).
+    analyze : the window analysis (default :func:`analyze_window`; must be picklable for worker
+        processes).
     """
 
     def __init__(self, core: MonitorCore, executor: Executor, *, alert_sinks: list[AlertSink] = (),
-                 window_sinks: list[WindowSink] = (), instance: str = "main", clock: Clock = time.monotonic) -> None:
+                 window_sinks: list[WindowSink] = (), instance: str = "main", clock: Clock = time.monotonic,
+                 analyze: Callable[[WindowSamples], WindowResult] = analyze_window) -> None:
         self.core = core
+        self.analyze = analyze
         self.executor = executor
         self.alert_sinks = list(alert_sinks)
         self.window_sinks = list(window_sinks)
@@ -679,7 +698,7 @@ class Monitor:
             with self._idle:
                 self._in_flight += len(windows)
             for w in windows:
-                self._pending.put((w, self.executor.submit(analyze_window, w), now))
+                self._pending.put((w, self.executor.submit(self.analyze, w), now))
 
     def _collect(self) -> None:
         while True:

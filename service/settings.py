@@ -111,14 +111,6 @@ class WindowSettings(_Strict):
             raise ValueError("give the hop in samples (hop) or in seconds (hop_s), not both")
         return self
 
-    def samples(self, sample_time_s: float) -> tuple[int, int]:
-        """``(length, hop)`` in samples for a loop sampled every ``sample_time_s``."""
-        length = self.length if self.length is not None else (
-            round(self.length_s / sample_time_s) if self.length_s is not None else 1024)
-        hop = self.hop if self.hop is not None else (
-            round(self.hop_s / sample_time_s) if self.hop_s is not None else max(1, length // 4))
-        return max(64, int(length)), max(1, min(int(hop), int(length)))
-
 
 class AlertSettings(_Strict):
     """Raise after ``raise_after`` consecutive non-linear windows, clear after ``clear_after`` clean ones."""
