@@ -1,0 +1,97 @@
+"""Real-data report (issue 3): every labelled file in ../shared/data, robust vs paper method.
+
+* ISDB (OP only): the oscillation flag of each loop (label source ZJUmzh benchmark.mat) against
+  "oscillating" (verdict nonlinear / linear / uncertain); and for each stiction list (three
+  third-party sources) stiction vs non-stiction against verdict ``nonlinear``.
+* plant windows (StictionGPT): ``stiction`` / ``non_stiction`` against verdict ``nonlinear``.
+Balanced accuracy per label source; per-file verdicts go to ``out/accuracy_real.csv``.
+
+Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_real.py``
+"""
+
+from __future__ import annotations
+
+import csv
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+from adapters.loop_csv import read_loop_csv
+from pipeline.diagnosis import DiagnosisConfig
+from service.analysis import analyze_loop
+from tests.conftest import SHARED_DATA
+
+METHODS = {"robust": DiagnosisConfig(), "paper": DiagnosisConfig(method="paper")}
+OSC = {"nonlinear", "linear", "uncertain"}
+
+
+def balanced(pairs: list[tuple[bool, bool]]) -> tuple[float, int, int]:
+    """Balanced accuracy of (truth, predicted) booleans, with the class sizes."""
+    pos = [p for t, p in pairs if t]
+    neg = [not p for t, p in pairs if not t]
+    if not pos or not neg:
+        return float("nan"), len(pos), len(neg)
+    return (sum(pos) / len(pos) + sum(neg) / len(neg)) / 2, len(pos), len(neg)
+
+
+def isdb_labels(root: Path) -> dict[str, dict[str, str]]:
+    """loop -> {source key -> label} for the oscillation flag and the stiction lists."""
+    out: dict[str, dict[str, str]] = defaultdict(dict)
+    with open(root / "labels.csv", newline="") as fh:
+        for row in csv.DictReader(fh):
+            cat, src = row["category"], row["source"]
+            if cat in ("oscillating", "not_oscillating"):
+                out[row["loop"]]["oscillation"] = cat
+            elif cat in ("stiction", "non_stiction", "normal", "no_stiction") and src.startswith("github:"):
+                key = src.split()[0].split("@")[0].removeprefix("github:")
+                out[row["loop"]][key] = "stiction" if cat == "stiction" else "non_stiction"
+    return out
+
+
+@pytest.mark.bench
+def test_accuracy_real_data():
+    isdb, plant = SHARED_DATA / "isdb", SHARED_DATA / "plant"
+    if not isdb.is_dir():
+        pytest.skip("no shared data")
+    labels = isdb_labels(isdb)
+    verdicts: dict[str, dict[str, str]] = defaultdict(dict)
+    for path in sorted(isdb.glob("*.csv")) + sorted(plant.glob("*.csv")):
+        if path.name == "labels.csv":
+            continue
+        data = read_loop_csv(path)
+        for m, cfg in METHODS.items():
+            verdicts[f"{path.parent.name}/{path.stem}"][m] = analyze_loop(data, config=cfg).verdict
+    plant_labels = {}
+    with open(plant / "labels.csv", newline="") as fh:
+        for row in csv.DictReader(fh):
+            plant_labels[f"plant/{Path(row['file']).stem}"] = row["label"]
+
+    print("\n[accuracy_real] balanced accuracy per label source (positives / negatives)")
+    for m in METHODS:
+        print(f"\n### method: {m}")
+        pairs = [(lab["oscillation"] == "oscillating", verdicts[f"isdb/{loop}"][m] in OSC)
+                 for loop, lab in labels.items() if "oscillation" in lab and f"isdb/{loop}" in verdicts]
+        ba, p, n = balanced(pairs)
+        print(f"ISDB oscillation flag: {ba:.3f} ({p} oscillating / {n} not)")
+        sources = sorted({k for lab in labels.values() for k in lab if k != "oscillation"})
+        for src in sources:
+            pairs = [(lab[src] == "stiction", verdicts[f"isdb/{loop}"][m] == "nonlinear")
+                     for loop, lab in labels.items() if src in lab and f"isdb/{loop}" in verdicts]
+            ba, p, n = balanced(pairs)
+            print(f"ISDB stiction list {src}: {ba:.3f} ({p} stiction / {n} not)")
+        pairs = [(lab == "stiction", verdicts[k][m] == "nonlinear") for k, lab in plant_labels.items() if k in verdicts]
+        ba, p, n = balanced(pairs)
+        print(f"plant windows stiction vs not: {ba:.3f} ({p} stiction / {n} not)")
+        counts = defaultdict(int)
+        for k, lab in plant_labels.items():
+            counts[(lab, verdicts[k][m])] += 1
+        print("plant confusion: " + ", ".join(f"{a}->{b}: {c}" for (a, b), c in sorted(counts.items())))
+    out = Path("out")
+    out.mkdir(exist_ok=True)
+    with open(out / "accuracy_real.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["file", "label", "robust", "paper"])
+        for k in sorted(verdicts):
+            lab = plant_labels.get(k) or labels.get(k.split("/")[1], {}).get("oscillation", "")
+            w.writerow([k, lab, verdicts[k]["robust"], verdicts[k]["paper"]])
