@@ -309,7 +309,6 @@ class LoopBuffer:
         self.ts: float | None = config.sample_time_s
         self.origin: float | None = None
         self.length = self.hop = self.cap = 0
-        self.slot_idx: np.ndarray | None = None
         self.data: dict[str, np.ndarray] = {}
         self.sig_hi: dict[str, int] = {}
         self.hi = -(2**62)
@@ -325,7 +324,6 @@ class LoopBuffer:
         self.ts, self.origin = ts, origin
         self.length, self.hop = self.config.window_samples(ts)
         self.cap = self.length + self.config.lateness + self.hop
-        self.slot_idx = np.full(self.cap, -(2**62), dtype=np.int64)
 
     def _try_infer(self) -> list[WindowSamples]:
         """Fix the grid from the first samples: the sample time (configured, a batch's ``dt``, or
@@ -389,13 +387,12 @@ class LoopBuffer:
 
     def _write(self, signal: str, k: np.ndarray, v: np.ndarray) -> None:
         cap = self.cap
-        s = k % cap
-        fresh = self.slot_idx[s] != k
-        if fresh.any():
-            sf = s[fresh]
+        top = int(k[-1]) if k.size else self.hi
+        if top > self.hi:  # grid points beyond the newest one reuse ring slots: clear them first
+            fresh = np.arange(max(self.hi + 1, top - cap + 1), top + 1) % cap
             for arr in self.data.values():
-                arr[sf] = np.nan
-            self.slot_idx[sf] = k[fresh]
+                arr[fresh] = np.nan
+        s = k % cap
         arr = self.data.get(signal)
         if arr is None:
             arr = self.data[signal] = np.full(cap, np.nan)
@@ -406,7 +403,6 @@ class LoopBuffer:
         arr[s] = v
         self.accepted[signal] += int(k.size)
         if k.size:
-            top = int(k[-1])
             if top > self.sig_hi.get(signal, -(2**62)):
                 self.sig_hi[signal] = top
             if top > self.hi:
@@ -427,13 +423,13 @@ class LoopBuffer:
     def _full(self, names: list[str]) -> bool:
         idx = np.arange(self.next_start, self.next_start + self.length, dtype=np.int64)
         s = idx % self.cap
-        valid = self.slot_idx[s] == idx
+        valid = idx <= self.hi
         return all(bool(np.all(valid & np.isfinite(self.data[n][s]))) for n in names)
 
     def _cut(self) -> WindowSamples:
         idx = np.arange(self.next_start, self.next_start + self.length, dtype=np.int64)
         s = idx % self.cap
-        valid = self.slot_idx[s] == idx
+        valid = idx <= self.hi   # older grid points than hi - cap never lie in a window still to cut
         signals = {}
         for name in SIGNALS:
             arr = self.data.get(name)
