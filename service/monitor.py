@@ -613,8 +613,9 @@ class MonitorCore:
             }
 
     def status(self, loop: str | None = None) -> dict[str, Any]:
+        """Totals plus every loop (``loop=None``), one loop, or none (``loop=""``)."""
         with self.lock:
-            ids = [loop] if loop is not None and loop in self.loops else ([] if loop else list(self.loops))
+            ids = list(self.loops) if loop is None else ([loop] if loop in self.loops else [])
             return {"totals": self.totals(), "unrouted_rejects": dict(self.unrouted),
                     "loops": {i: self.loop_status(i) for i in ids}}
 

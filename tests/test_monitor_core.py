@@ -365,3 +365,13 @@ def test_concurrent_ingest_from_many_threads_loses_nothing():
     for t in threads:
         t.join()
     assert c.totals()["samples_accepted"] == 8000 and c.totals()["rejected"] == {}
+
+
+def test_status_selects_all_one_or_no_loop():
+    c = core()
+    for name in ("A", "B"):
+        feed_binary(c, name, "pv", T0, planted(20), batch=20)
+    assert sorted(c.status()["loops"]) == ["A", "B"]
+    assert list(c.status("B")["loops"]) == ["B"]
+    assert c.status("")["loops"] == {} and c.status("nope")["loops"] == {}
+    assert c.status("")["totals"]["samples_accepted"] == 40
