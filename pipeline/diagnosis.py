@@ -135,7 +135,12 @@ def fill_gaps(x: np.ndarray, *, max_fraction: float, max_gap: int) -> tuple[np.n
 
 
 def diagnose_window(
-    x: np.ndarray, *, fs: float, config: DiagnosisConfig = DiagnosisConfig(), op: np.ndarray | None = None
+    x: np.ndarray,
+    *,
+    fs: float,
+    config: DiagnosisConfig = DiagnosisConfig(),
+    op: np.ndarray | None = None,
+    mode: np.ndarray | None = None,
 ) -> WindowDiagnosis:
     """Diagnose the cause of oscillation in one window of a loop signal.
 
@@ -145,6 +150,9 @@ def diagnose_window(
     fs : sampling frequency in Hz.
     config : see :class:`DiagnosisConfig` (``method`` selects robust or paper).
     op : the controller output over the same window, when known (saturation guard).
+    mode : the loop's mode over the same window, when known (1 = automatic).  A window with a
+        sample in another mode is ``invalid``: a loop in manual cannot show a control-loop
+        oscillation.
 
     Returns
     -------
@@ -156,6 +164,10 @@ def diagnose_window(
         raise SignalError(f"diagnose_window expects a 1-D window, got shape {x.shape}")
     if not fs > 0:
         raise SignalError(f"fs={fs!r} must be > 0")
+    if mode is not None:
+        manual = int(np.count_nonzero(np.isfinite(mode) & (mode != 1)))
+        if manual:
+            return WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {x.size} samples")
     x, n_filled, problem = fill_gaps(x, max_fraction=config.max_missing_fraction, max_gap=config.max_gap_samples)
     if problem:
         return WindowDiagnosis("invalid", problem, n_filled=n_filled)

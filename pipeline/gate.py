@@ -36,6 +36,7 @@ import numpy as np
 from scipy import fft, signal
 
 from .errors import PipelineConfigError, SignalError
+from .frequency import zero_crossings
 
 __all__ = ["GateConfig", "GateResult", "oscillation_gate", "acf", "regularity"]
 
@@ -128,13 +129,6 @@ def robust_amplitude(y: np.ndarray) -> float:
     return float(part[k95] - part[k5]) / 2.0
 
 
-def _zero_crossings(y: np.ndarray) -> np.ndarray:
-    """Fractional indices where ``y`` changes sign (linear interpolation)."""
-    neg = np.signbit(y)
-    i = np.flatnonzero(neg[1:] != neg[:-1])
-    return i + y[i] / (y[i] - y[i + 1])
-
-
 def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[float, float, int, float]:
     """Thornhill et al. (2003) regularity of the zero crossings of an ACF ``r``.
 
@@ -144,7 +138,7 @@ def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[fl
     the number of full-period estimates and the ACF at the lag of the mean period.
     NaNs when fewer than ``min_periods`` full periods are available.
     """
-    z = _zero_crossings(r)
+    z = zero_crossings(r)
     periods = z[2:] - z[:-2]
     if periods.size < min_periods:
         return np.nan, np.nan, int(periods.size), np.nan

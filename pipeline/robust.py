@@ -35,6 +35,7 @@ import numpy as np
 from scipy import fft
 
 from .dnl import imf_dnl
+from .errors import PipelineConfigError
 from .surrogates import harmonic_free_amplitudes, phase_randomised
 
 __all__ = ["RobustConfig", "RobustResult", "band_weights", "robust_dnl_test"]
@@ -61,8 +62,6 @@ class RobustConfig:
     seed: int = 20160707
 
     def __post_init__(self) -> None:
-        from .errors import PipelineConfigError
-
         if self.n_harmonics < 2:
             raise PipelineConfigError(
                 f"n_harmonics={self.n_harmonics!r} must be >= 2: without harmonics a stick-slip wave looks linear"

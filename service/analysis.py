@@ -122,14 +122,8 @@ def analyze_loop(
     reports = []
     for s in window_starts(n, window=window, hop=hop):
         sl = slice(s, s + window)
-        manual = 0
-        if data.mode is not None:
-            m = data.mode[sl]
-            manual = int(np.sum(np.isfinite(m) & (m != 1)))
-        if manual:
-            diag = WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {window} samples")
-        else:
-            diag = diagnose_window(x[sl], fs=fs, config=config)
+        mode = None if data.mode is None else data.mode[sl]
+        diag = diagnose_window(x[sl], fs=fs, config=config, mode=mode)
         reports.append(WindowReport(float(data.t[s]), float(data.t[min(s + window, n) - 1]), diag))
     verdict, tdnl_value, reason = overall_verdict([r.diagnosis for r in reports])
     return LoopReport(data.source, name, n, data.sample_time_s, verdict, tdnl_value, reason, tuple(reports),

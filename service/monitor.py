@@ -25,7 +25,7 @@ import queue
 import threading
 import time
 from collections import Counter, deque
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Literal
 
@@ -170,12 +170,8 @@ def analyze_window(window: WindowSamples) -> WindowResult:
     """
     x = window.series()
     n_missing = int(np.count_nonzero(~np.isfinite(x)))
-    mode = window.signals.get("mode")
-    manual = int(np.count_nonzero(np.isfinite(mode) & (mode != 1))) if mode is not None else 0
-    if manual:
-        diag = WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {x.size} samples")
-    else:
-        diag = diagnose_window(x, fs=1.0 / window.sample_time_s, config=window.analysis.diagnosis)
+    diag = diagnose_window(x, fs=1.0 / window.sample_time_s, config=window.analysis.diagnosis,
+                           mode=window.signals.get("mode"))
     ok = np.isfinite(x)
     amplitude = math.nan
     if np.count_nonzero(ok) >= 8:
