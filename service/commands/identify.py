@@ -14,8 +14,6 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
-
 from adapters.valve_csv import read_valve_csv
 from models.identification import Identification, ParameterSet, Validation, identify, validate
 from models.karnopp import M_KG, SA_M2
