@@ -13,7 +13,9 @@ from service.commands.simulate_plant import PlantPublisher, expects_alert, make_
 from service.composition import start_monitor
 from service.settings import load_settings
 
-PORT = 17511
+from .conftest import loopback_port
+
+PORT = loopback_port(11)
 ENDPOINT = f"tcp/127.0.0.1:{PORT}"
 DURATION = 2600.0            # 7 windows of 1024 every 256 samples
 N_WINDOWS = int((DURATION - 1024) // 256 + 1)
