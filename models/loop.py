@@ -67,6 +67,7 @@ from .errors import ModelConfigError
 from .valves import (
     BacklashSpec,
     ChoudhuryStictionSpec,
+    KarnoppLoopSpec,
     LinearValveSpec,
     LuGreParams,
     LuGreSpec,
@@ -222,7 +223,7 @@ class LoopScenario:
         if not isinstance(self.controller, PIController):
             raise ModelConfigError(f"controller = {self.controller!r} must be a PIController")
         if self.valve is not None and not isinstance(
-            self.valve, (LinearValveSpec, ChoudhuryStictionSpec, LuGreSpec, BacklashSpec)
+            self.valve, (LinearValveSpec, ChoudhuryStictionSpec, LuGreSpec, BacklashSpec, KarnoppLoopSpec)
         ):
             raise ModelConfigError(f"valve = {self.valve!r} must be a ValveSpec or None")
         steps = tuple(self.setpoint_steps)
@@ -260,7 +261,7 @@ class LoopScenario:
         """The ground-truth cause (``truth`` or the derived one, see the class docstring)."""
         if self.truth is not None:
             return self.truth
-        if isinstance(self.valve, (ChoudhuryStictionSpec, LuGreSpec)):
+        if isinstance(self.valve, (ChoudhuryStictionSpec, LuGreSpec, KarnoppLoopSpec)):
             return "stiction"
         if isinstance(self.valve, BacklashSpec):
             return "deadband"

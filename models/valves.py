@@ -46,6 +46,8 @@ __all__ = [
     "ChoudhuryStictionSpec",
     "LuGreSpec",
     "BacklashSpec",
+    "KarnoppLoopValve",
+    "KarnoppLoopSpec",
     "ValveSpec",
     "make_valve",
     "lugre_rhs",
@@ -464,6 +466,73 @@ class LuGreValve:
 
 
 # --------------------------------------------------------------------------------------------
+# Karnopp valve at loop time scales (quasi-static)
+# --------------------------------------------------------------------------------------------
+
+
+class KarnoppLoopValve:
+    """Karnopp friction (Romano & Garcia, eq. 1–2; :mod:`models.karnopp`) at control-loop time scales.
+
+    The stem of the paper's valve has a mass-spring mode at ``sqrt(k/m) = 360 rad/s`` and a
+    viscous time constant ``tau = F_v / k`` of 24 ms (Table 1, low friction): far faster than a
+    1 s control loop, whose simulator steps 0.1 s.  Dropping the inertia (``m -> 0``) leaves
+    eq. (1)–(2) in force units of the OP (``F / (S_a Δp_span)``, so that a frictionless valve
+    follows ``MV = OP``):
+
+    * stick, ``|v| < DV`` and ``|OP - MV| <= F_s``: the stem holds;
+    * breakaway, ``|v| < DV`` and ``|OP - MV| > F_s``: it slides in the direction ``s`` of the net force;
+    * slip: ``tau dMV/dt = OP - MV - s F_c`` (viscous friction balances the net force less the
+      Coulomb friction), integrated exactly over the step for the OP at the end of the step;
+      when the velocity falls below ``DV`` or would reverse, the stem sticks again.
+
+    A slowly ramping OP therefore gives the stick-slip of the paper's valve: the stem breaks
+    away at ``F_s``, jumps by ``F_s - F_c``, and sticks again once its speed drops below ``DV``.
+
+    Parameters
+    ----------
+    fc, fs : Coulomb and static friction in OP units (``fs >= fc >= 0``).
+    tau_s : viscous time constant ``F_v / k`` in seconds.
+    dv : the limit velocity ``DV`` of eq. (2) in OP units per second.
+    """
+
+    def __init__(self, fc: float, fs: float, tau_s: float = 4865.0 / 2.05e5, dv: float = 0.7) -> None:
+        self.fc = _finite("Karnopp fc (Coulomb friction, OP units)", fc, minimum=0.0)
+        self.fs = _finite("Karnopp fs (static friction, OP units)", fs, minimum=0.0)
+        if self.fs < self.fc:
+            raise ModelConfigError(f"Karnopp fs = {fs!r} must be >= fc = {fc!r}")
+        self.tau_s = _finite("Karnopp tau_s (F_v / k)", tau_s, minimum=0.0, strict=True)
+        self.dv = _finite("Karnopp dv (limit velocity, OP units/s)", dv, minimum=0.0)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history: the next ``update`` puts the stem at rest at its OP."""
+        self._started = False
+        self._y = 0.0
+        self._dir = 0
+
+    def update(self, op: float, dt: float) -> float:
+        """Advance ``dt`` seconds with controller output ``op``; return the stem position (OP units)."""
+        x = float(op)
+        if not self._started:
+            self._started, self._y, self._dir = True, x, 0
+            return x
+        net = x - self._y
+        if self._dir == 0:
+            if abs(net) <= self.fs:
+                return self._y
+            self._dir = 1 if net > 0 else -1
+        s = self._dir
+        target = x - s * self.fc
+        if (target - self._y) * s <= 0.0:  # the net force no longer beats Coulomb friction
+            self._dir = 0
+            return self._y
+        self._y = target + (self._y - target) * math.exp(-dt / self.tau_s)
+        if abs(target - self._y) / self.tau_s < self.dv:  # slower than DV: stuck (eq. 2)
+            self._dir = 0
+        return self._y
+
+
+# --------------------------------------------------------------------------------------------
 # Specs (frozen, held by a LoopScenario) and the factory
 # --------------------------------------------------------------------------------------------
 
@@ -519,10 +588,32 @@ class BacklashSpec:
         _finite("backlash width", self.width, minimum=0.0)
 
 
-ValveSpec = LinearValveSpec | ChoudhuryStictionSpec | LuGreSpec | BacklashSpec
+@dataclass(frozen=True)
+class KarnoppLoopSpec:
+    """Karnopp valve at loop time scales (:class:`KarnoppLoopValve`), frictions in OP units."""
+
+    fc: float
+    fs: float
+    tau_s: float = 4865.0 / 2.05e5
+    dv: float = 0.7
+    kind: str = field(default="stiction", init=False)
+
+    def __post_init__(self) -> None:
+        KarnoppLoopValve(self.fc, self.fs, self.tau_s, self.dv)  # validates
+
+    @classmethod
+    def from_karnopp(cls, params, *, span_pa: float = 206.84e3 - 41.74e3) -> "KarnoppLoopSpec":
+        """From :class:`models.karnopp.KarnoppParams`: forces over ``S_a * span / 100`` (OP %),
+        ``tau = F_v / k``, ``DV`` over the travel (the stops, else the paper's 28.6 mm)."""
+        per_pct = params.sa * span_pa / 100.0
+        travel = params.x_max - params.x_min if math.isfinite(params.x_max - params.x_min) else 2.8575e-2
+        return cls(params.fc / per_pct, params.fs / per_pct, params.fv / params.k, params.dv / travel * 100.0)
 
 
-def make_valve(spec: ValveSpec | None) -> LinearValve | ChoudhuryStiction | LuGreValve | Backlash:
+ValveSpec = LinearValveSpec | ChoudhuryStictionSpec | LuGreSpec | BacklashSpec | KarnoppLoopSpec
+
+
+def make_valve(spec: ValveSpec | None) -> LinearValve | ChoudhuryStiction | LuGreValve | Backlash | KarnoppLoopValve:
     """Build a fresh (reset) valve block from its spec; ``None`` means a linear valve."""
     if spec is None or isinstance(spec, LinearValveSpec):
         return LinearValve()
@@ -532,4 +623,6 @@ def make_valve(spec: ValveSpec | None) -> LinearValve | ChoudhuryStiction | LuGr
         return LuGreValve(spec.params, spec.force_gain, max_step_s=spec.max_step_s)
     if isinstance(spec, BacklashSpec):
         return Backlash(spec.width)
+    if isinstance(spec, KarnoppLoopSpec):
+        return KarnoppLoopValve(spec.fc, spec.fs, spec.tau_s, spec.dv)
     raise ModelConfigError(f"valve spec = {spec!r} is not a ValveSpec")

@@ -2,10 +2,11 @@
 
 Two methods, chosen by :attr:`DiagnosisConfig.method`:
 
-``robust`` (default): gate, data-quality guards, then the noise-robust DNL with a surrogate
-significance test of :mod:`pipeline.robust`; verdict ``nonlinear`` when the DNL is both
-significant (p <= alpha) and large (>= min_dnl), ``linear`` when it is not significant,
-``uncertain`` in between or when a data-quality guard fails.
+``robust`` (default): set-point changes → analyse the control error; gate; data-quality
+guards; then the DNL of the phase-locked mean wave with a surrogate significance test
+(:mod:`pipeline.robust`), on the analysed signal and, when given, on the OP as well; verdict
+``nonlinear`` when the DNL is both significant (p <= alpha) and large (>= min_dnl), ``linear``
+when it is not significant, ``uncertain`` in between or when a data-quality guard fails.
 
 ``paper``: the method of Aftab, Hovd, Huang & Sivalingam (2016) as published:
 a window that oscillates (Thornhill et al. 2003 gate, :mod:`pipeline.gate`) is decomposed by
@@ -29,6 +30,7 @@ from .gate import GateConfig, GateResult, detrend_linear, oscillation_gate
 from .pruning import significant_imfs
 from .quality import window_guards
 from .robust import RobustConfig, RobustResult, robust_dnl_test
+from .stickslip import StickSlip, stick_slip_episodes
 
 __all__ = ["Verdict", "DiagnosisConfig", "WindowDiagnosis", "diagnose_window", "fill_gaps"]
 
@@ -90,7 +92,8 @@ class WindowDiagnosis:
     Paper method: ``imfs_kept`` are 1-based IMF numbers (IMF 1 has the highest frequency),
     ``dnl`` the DNL of each kept IMF in the same order, ``lambdas`` the eq. 8 figure of every IMF.
     Robust method: ``dnl`` holds the one DNL of the band-passed oscillation component (also in
-    ``tdnl``), ``robust`` the surrogate threshold and p-value; no IMFs.
+    ``tdnl``), ``robust`` the surrogate threshold and p-value; no IMFs.  ``stick_slip`` holds
+    the stuck-valve episodes found in a window that does not oscillate (PV, OP and SP known).
     """
 
     verdict: Verdict
@@ -105,6 +108,7 @@ class WindowDiagnosis:
     method: Method = "paper"
     robust: RobustResult | None = None
     guards: tuple[str, ...] = ()
+    stick_slip: StickSlip | None = None
 
 
 def fill_gaps(x: np.ndarray, *, max_fraction: float, max_gap: int) -> tuple[np.ndarray, int, str | None]:
@@ -141,6 +145,7 @@ def diagnose_window(
     config: DiagnosisConfig = DiagnosisConfig(),
     op: np.ndarray | None = None,
     mode: np.ndarray | None = None,
+    sp: np.ndarray | None = None,
 ) -> WindowDiagnosis:
     """Diagnose the cause of oscillation in one window of a loop signal.
 
@@ -149,10 +154,15 @@ def diagnose_window(
     x : 1-D window (PV, OP or control error) on a regular grid; NaN marks a missing sample.
     fs : sampling frequency in Hz.
     config : see :class:`DiagnosisConfig` (``method`` selects robust or paper).
-    op : the controller output over the same window, when known (saturation guard).
+    op : the controller output over the same window, when known: saturation guard, and (robust
+        method) a second witness of the non-linearity.
     mode : the loop's mode over the same window, when known (1 = automatic).  A window with a
         sample in another mode is ``invalid``: a loop in manual cannot show a control-loop
         oscillation.
+    sp : the set point over the same window when ``x`` is the PV (robust method).  When it
+        changes inside the window, the control error ``sp - x`` is analysed instead of the PV
+        (a set-point step in the PV is a transient, not an oscillation, and its corners would
+        read as intra-wave frequency modulation); the reason says so.
 
     Returns
     -------
@@ -168,12 +178,23 @@ def diagnose_window(
         manual = int(np.count_nonzero(np.isfinite(mode) & (mode != 1)))
         if manual:
             return WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {x.size} samples")
+    notes: list[str] = []
+    pv = x
+    if config.method == "robust" and sp is not None:
+        sp = np.asarray(sp, dtype=np.float64)
+        change = _setpoint_change(sp, x)
+        if change:
+            x = sp - x
+            notes.append(f"{change}: analysing the control error sp - pv")
     x, n_filled, problem = fill_gaps(x, max_fraction=config.max_missing_fraction, max_gap=config.max_gap_samples)
     if problem:
         return WindowDiagnosis("invalid", problem, n_filled=n_filled)
     gate = oscillation_gate(x, fs=fs, config=config.gate)
     if config.method == "robust":
-        return _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op)
+        diag = _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op, notes=notes)
+        if diag.verdict == "not_oscillating" and op is not None and sp is not None:
+            diag = _with_stick_slip(diag, pv, op, sp, config)
+        return diag
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason, gate, n_filled=n_filled)
 
@@ -211,24 +232,71 @@ def diagnose_window(
     return WindowDiagnosis("linear", reason, **common)
 
 
-def _diagnose_robust(x, *, fs, config, gate, n_filled, op) -> WindowDiagnosis:
+def _setpoint_change(sp: np.ndarray, pv: np.ndarray) -> str | None:
+    """A sentence when the set point moves inside the window by more than rounding, else None."""
+    ok = np.isfinite(sp)
+    if ok.sum() < 2:
+        return None
+    span = float(np.ptp(sp[ok]))
+    scale = max(float(np.nanmax(np.abs(sp[ok]))), float(np.nanstd(pv)) if np.isfinite(pv).any() else 0.0, 1e-300)
+    if span <= 1e-9 * scale:
+        return None
+    return f"set point changes inside the window (range {span:.4g})"
+
+
+def _usable_op(op: np.ndarray | None, n: int, config: DiagnosisConfig) -> np.ndarray | None:
+    """The OP as a detrended second witness, when it has the window's length and few gaps."""
+    if op is None:
+        return None
+    op = np.asarray(op, dtype=np.float64)
+    if op.shape != (n,):
+        return None
+    filled, _, problem = fill_gaps(op, max_fraction=config.max_missing_fraction, max_gap=config.max_gap_samples)
+    if problem or np.ptp(filled) == 0:
+        return None
+    return detrend_linear(filled)
+
+
+def _with_stick_slip(diag: WindowDiagnosis, pv, op, sp, config: DiagnosisConfig) -> WindowDiagnosis:
+    """Add the stuck-valve episodes (:mod:`pipeline.stickslip`) to a non-oscillating window."""
+    from dataclasses import replace
+
+    series = []
+    for v in (pv, op, sp):
+        v = np.asarray(v, dtype=np.float64)
+        if v.shape != np.shape(pv):
+            return diag
+        filled, _, problem = fill_gaps(v, max_fraction=config.max_missing_fraction, max_gap=config.max_gap_samples)
+        if problem:
+            return diag
+        series.append(filled)
+    found = stick_slip_episodes(*series)
+    if found is None or not found.episodes:
+        return replace(diag, stick_slip=found)
+    return replace(diag, stick_slip=found, reason=f"{diag.reason}; {found.reason}")
+
+
+def _diagnose_robust(x, *, fs, config, gate, n_filled, op, notes) -> WindowDiagnosis:
     guards = tuple(window_guards(x, op=op))
-    note = ("; " + "; ".join(guards)) if guards else ""
+    note = ("; " + "; ".join(notes + list(guards))) if notes or guards else ""
     common = dict(gate=gate, n_filled=n_filled, method="robust", guards=guards)
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason + note, **common)
     rc = config.robust
-    r = robust_dnl_test(detrend_linear(x), fs=fs, period_s=gate.period_s, config=rc)
+    witness = _usable_op(op, x.size, config)
+    r = robust_dnl_test(detrend_linear(x), fs=fs, period_s=gate.period_s, config=rc, other=witness)
     common.update(dnl=(r.dnl,), tdnl=r.dnl, robust=r)
     if not np.isfinite(r.p_value):
-        return WindowDiagnosis("invalid", "the oscillation component has no full wave to measure" + note, **common)
-    figures = f"DNL {r.dnl:.3f} vs {r.threshold:.3f} for a linear oscillation (95 % of {r.n_surrogates} surrogates), p = {r.p_value:.3f}"
+        return WindowDiagnosis("invalid", "the oscillation has no full wave to measure" + note, **common)
+    where = " (OP)" if r.signal == "other" else ""
+    figures = (f"DNL of the mean wave{where} {r.dnl:.3f} vs {r.threshold:.3f} for a linear oscillation "
+               f"(95 % of {r.n_surrogates} surrogates), p = {r.p_value:.3f}")
     significant, large = r.p_value <= rc.alpha, r.dnl >= rc.min_dnl
     if significant and large:
         if guards:
             return WindowDiagnosis("uncertain", f"{figures}: would be non-linear, but{note[1:]}", **common)
-        return WindowDiagnosis("nonlinear", f"{figures}: intra-wave frequency modulation beyond noise, "
-                               "non-linear cause (e.g. valve stiction)", **common)
+        return WindowDiagnosis("nonlinear", f"{figures}: phase-locked intra-wave frequency modulation, "
+                               f"non-linear cause (e.g. valve stiction){note}", **common)
     if significant:
         return WindowDiagnosis("uncertain", f"{figures}: significant but small (< {rc.min_dnl:g}){note}", **common)
     if large and r.p_value <= 2 * rc.alpha:

@@ -19,11 +19,16 @@ Choices the method leaves open, documented here:
 * the ACF is the biased estimate (divided by N) from an FFT, up to lag ``2N/3``; at least
   ``min_periods`` full-period estimates (``min_periods + 2`` zero crossings) are needed, so the
   window must hold about four periods or more;
-* persistence: a band-limited noise also has an ACF with a few regular crossings near lag zero,
-  but it dies out within a period.  A sustained oscillation keeps its ACF up: we require the ACF
-  at the first full-period lag to be at least ``min_persistence`` (default 0.2; a noise-driven
-  second-order loop passes only if its damping ratio is below about 0.25, i.e. if a control
-  engineer would call it oscillatory as well).  This persistence check is ours, not Thornhill's;
+* sustained, not resonant: band-limited noise (a well-damped loop excited by noise, or noise
+  band-passed by the filter above) also has an ACF with a few regular zero crossings near lag
+  zero, but its ACF peaks are small and die out.  We require every ACF peak near ``T``, ``2T``
+  and ``3T`` (corrected for the ``1 - lag/N`` taper of the biased estimator) to reach
+  ``max(min_persistence, z * se)``, where ``se`` is the standard error of the ACF of white
+  noise through the same filter (Bartlett's formula, ``se^2 = sum_k rho_h(k)^2 / N`` with
+  ``rho_h`` the filter's own autocorrelation; ``1/sqrt(N)`` for the unfiltered window) and
+  ``z = 3``: the peaks must be significant for this window length and band, not a fixed number.
+  ``min_persistence`` (default 0.1) asks that the periodic part carry at least a tenth of the
+  analysed variance.  This check is ours, not Thornhill's;
 * amplitude: half the 5 %–95 % percentile range of the detrended window (robust half
   peak-to-peak: ``A`` for a square wave of amplitude ``A``, ``0.99 A`` for a sine).
 """
@@ -36,6 +41,7 @@ import numpy as np
 from scipy import fft, signal
 
 from .errors import PipelineConfigError, SignalError
+from .filters import band_weights
 from .frequency import zero_crossings
 
 __all__ = ["GateConfig", "GateResult", "oscillation_gate", "acf", "regularity"]
@@ -48,14 +54,17 @@ class GateConfig:
     Parameters
     ----------
     min_regularity : r above which the ACF zero crossings count as regular (paper value 1).
-    min_persistence : lowest ACF value at the first full-period lag of a sustained oscillation.
+    min_persistence : lowest ACF peak over the first three periods (share of the variance that
+        is periodic).
+    acf_z : the ACF peaks must also exceed ``acf_z`` standard errors of a filtered white noise's ACF.
     min_periods : fewest full-period estimates from ACF zero crossings.
     min_period_samples : shortest period considered an oscillation, in samples.
     max_bands : spectral peaks tried with band-pass filtering when the raw ACF is irregular.
     """
 
     min_regularity: float = 1.0
-    min_persistence: float = 0.3
+    min_persistence: float = 0.1
+    acf_z: float = 3.0
     min_periods: int = 5
     min_period_samples: float = 4.0
     max_bands: int = 3
@@ -69,6 +78,8 @@ class GateConfig:
             raise PipelineConfigError(
                 f"min_persistence={self.min_persistence!r} must be in [0, 1): it is an autocorrelation"
             )
+        if not self.acf_z >= 0:
+            raise PipelineConfigError(f"acf_z={self.acf_z!r} must be >= 0 (standard errors)")
         if self.min_periods < 2:
             raise PipelineConfigError(
                 f"min_periods={self.min_periods!r} must be >= 2: regularity needs a standard deviation"
@@ -135,7 +146,8 @@ def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[fl
     Returns
     -------
     (period, regularity, n_periods, persistence): the mean full period in lags, ``r`` factor,
-    the number of full-period estimates and the ACF at the lag of the mean period.
+    the number of full-period estimates and the weakest ACF peak near ``T``, ``2T``, ``3T``
+    (each the largest taper-corrected value within a quarter period of ``k T``).
     NaNs when fewer than ``min_periods`` full periods are available.
     """
     z = zero_crossings(r)
@@ -147,12 +159,27 @@ def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[fl
     tp = float(periods.mean())
     sd = float(periods.std(ddof=1))
     reg = np.inf if sd == 0 else tp / (3.0 * sd)
-    # persistence: the weakest ACF peak over the first three periods, corrected for the
-    # (1 - lag/N) taper of the biased estimator
-    lags = np.rint(tp * np.arange(1, 4)).astype(int)
-    lags = lags[lags < r.size]
-    persistence = float(np.min(r[lags] / (1.0 - lags / n_total))) if lags.size else np.nan
+    peaks = []
+    for k in (1, 2, 3):
+        lo, hi = max(int(np.floor(k * tp - tp / 4)), 1), min(int(np.ceil(k * tp + tp / 4)) + 1, r.size)
+        if hi > lo:
+            lags = np.arange(lo, hi)
+            peaks.append(float(np.max(r[lo:hi] / (1.0 - lags / n_total))))
+    persistence = min(peaks) if peaks else np.nan
     return tp, reg, int(periods.size), persistence
+
+
+def acf_standard_error(n: int, band: tuple[float, float] | None) -> float:
+    """Standard error of the ACF of white noise after the gate's band-pass (Bartlett's formula)."""
+    if band is None:
+        return 1.0 / np.sqrt(n)
+    f = fft.rfftfreq(n)
+    g = band_weights(f, f_lo=band[0], f_hi=band[1]) ** 2  # power response
+    rho = fft.irfft(g, n)
+    if rho[0] <= 0:
+        return 1.0
+    rho = rho / rho[0]
+    return float(np.sqrt(np.sum(rho**2) / n))
 
 
 def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_period: float):
@@ -169,11 +196,11 @@ def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_pe
 
 
 def _bandpass(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Zero-phase brick-wall band-pass in the frequency domain (Thornhill et al. 2003, §3)."""
-    spec = fft.rfft(x)
+    """Zero-phase band-pass in the frequency domain (Thornhill et al. 2003, §3): squared
+    second-order Butterworth edges, not a brick wall, whose ACF tails (decaying only as
+    ``1/lag``) would make band-passed noise look like a sustained oscillation."""
     f = fft.rfftfreq(x.size)
-    spec[(f < lo) | (f > hi)] = 0.0
-    return fft.irfft(spec, x.size)
+    return fft.irfft(fft.rfft(x) * band_weights(f, f_lo=lo, f_hi=hi), x.size)
 
 
 def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfig()) -> GateResult:
@@ -218,29 +245,30 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
         tp, reg, nper, pers = regularity(acf(yy, max_lag=max_lag), n_total=n, min_periods=config.min_periods)
         if not np.isfinite(tp):
             continue
+        need = max(config.min_persistence, config.acf_z * acf_standard_error(n, band))
         passed = (
             reg > config.min_regularity
-            and pers >= config.min_persistence
+            and pers >= need
             and config.min_period_samples <= tp <= max_period
         )
         score = (passed, min(reg, 1e6) * max(pers, 0.0))
         if best is None or score > best[0]:
-            best = (score, band, tp, reg, nper, pers)
+            best = (score, band, tp, reg, nper, pers, need)
         if passed:
             break
     if best is None:
         return GateResult(False, nan, amplitude, nan, nan, 0, None,
                           "no regular oscillation: too few ACF zero crossings for the window length")
-    (passed, _), band, tp, reg, nper, pers = best
+    (passed, _), band, tp, reg, nper, pers, need = best
     band_hz = None if band is None else (band[0] * fs, band[1] * fs)
     period_s = tp / fs
     where = "" if band is None else f" in band {band_hz[0]:.4g}–{band_hz[1]:.4g} Hz"
     if passed:
-        reason = f"oscillating{where}: period {period_s:.4g} s, regularity r={reg:.2f}, ACF at one period {pers:.2f}"
+        reason = f"oscillating{where}: period {period_s:.4g} s, regularity r={reg:.2f}, ACF peaks >= {pers:.2f}"
     elif reg <= config.min_regularity:
         reason = f"no regular oscillation: regularity r={reg:.2f} <= {config.min_regularity:g}"
-    elif pers < config.min_persistence:
-        reason = f"no sustained oscillation: ACF at one period {pers:.2f} < {config.min_persistence:g} (decaying)"
+    elif pers < need:
+        reason = f"no sustained oscillation: ACF peaks over three periods down to {pers:.2f} < {need:.2f} (decaying or noise)"
     elif tp > max_period:
         reason = f"period {period_s:.4g} s too long: the window holds fewer than {n / max_period:.3g} periods"
     else:

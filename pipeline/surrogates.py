@@ -11,10 +11,11 @@ just as distorted (we measured surrogate DNLs as high as the data's on simulated
 A linear loop driven at f0, by tuning or by a sinusoidal disturbance, does not create
 harmonics.  The null hypothesis here is therefore "a linear oscillation at f0 in the observed
 noise": the surrogate keeps the amplitude spectrum of the window except in narrow bands around
-the harmonics ``k f0`` (k = 2 .. n_harmonics + 1, half-width ``f0 / 4``), where the amplitude is
-lowered to the median level of the band outside the fundamental and the harmonics (the noise
-floor), and gets uniformly random phases (Theiler's FT surrogate).  Amplitude and frequency
-wander of the fundamental, and the noise, are kept; phase-locked harmonics are not.
+the harmonics ``k f0`` (k = 2 .. n_harmonics + 1, half-width ``f0 / 4``), whose amplitudes are
+replaced by amplitudes drawn at random from the neighbouring noise (the bins between ``f0/4``
+and ``f0/2`` on either side of the band), and gets uniformly random phases (Theiler's FT
+surrogate).  Amplitude and frequency wander of the fundamental, and the noise (coloured as it
+is), are kept; phase-locked harmonics are not.
 """
 
 from __future__ import annotations
@@ -22,42 +23,59 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
-__all__ = ["harmonic_free_amplitudes", "phase_randomised"]
+__all__ = ["harmonic_free_amplitudes", "random_phase_spectra", "phase_randomised"]
 
 
-def harmonic_free_amplitudes(spectrum: np.ndarray, f: np.ndarray, *, f0: float, f_hi: float, n_harmonics: int) -> np.ndarray:
-    """Amplitude spectrum with the harmonic bands of ``f0`` lowered to the noise floor.
+def harmonic_free_amplitudes(spectrum: np.ndarray, f: np.ndarray, *, f0: float, n_harmonics: int,
+                             rng: np.random.Generator, count: int | None = None) -> np.ndarray:
+    """Amplitude spectrum with the harmonic bands of ``f0`` replaced by the local noise.
 
     Parameters
     ----------
     spectrum : complex or real one-sided spectrum (``rfft``) of the window.
     f : its frequencies (same unit as ``f0``).
     f0 : fundamental frequency of the oscillation.
-    f_hi : upper edge of the analysed band; the floor is the median amplitude in
-        ``(f0/2, f_hi)`` outside the fundamental and harmonic bands.
-    n_harmonics : harmonics 2 .. n_harmonics + 1 are removed.
+    n_harmonics : harmonics 2 .. n_harmonics + 1 are replaced.
+    rng : draws the replacement amplitudes (a bootstrap of the neighbouring noise bins).
+    count : number of independent draws; ``None`` returns one spectrum, else ``(count, len(f))``.
+
+    Returns
+    -------
+    amplitudes, shape ``spectrum.shape`` or ``(count, len(f))``.
     """
     mag = np.abs(spectrum)
-    half = f0 / 4.0
-    fundamental = np.abs(f - f0) < half
-    harmonic = np.zeros(f.size, dtype=bool)
+    shape = mag.shape if count is None else (count,) + mag.shape
+    out = np.broadcast_to(mag, shape).copy()
     for k in range(2, n_harmonics + 2):
-        harmonic |= np.abs(f - k * f0) < half
-    floor_band = (f > f0 / 2.0) & (f < f_hi) & ~harmonic & ~fundamental
-    floor = float(np.median(mag[floor_band])) if floor_band.any() else 0.0
-    out = mag.copy()
-    out[harmonic] = np.minimum(out[harmonic], floor)
+        d = np.abs(f - k * f0)
+        band = np.flatnonzero(d < f0 / 4.0)
+        if band.size == 0:
+            continue
+        near = np.flatnonzero((d >= f0 / 4.0) & (d < f0 / 2.0))
+        if near.size == 0:
+            out[..., band] = 0.0
+            continue
+        out[..., band] = mag[near][rng.integers(0, near.size, shape[:-1] + (band.size,))]
     return out
 
 
-def phase_randomised(amplitudes: np.ndarray, n: int, rng: np.random.Generator, *, count: int) -> np.ndarray:
-    """``count`` real series of length ``n`` with the given one-sided amplitudes and random phases.
+def random_phase_spectra(amplitudes: np.ndarray, n: int, rng: np.random.Generator, *, count: int) -> np.ndarray:
+    """``count`` one-sided spectra (``rfft`` of real series of length ``n``) with the given
+    amplitudes (one vector, or one per spectrum) and independent uniformly random phases.
 
-    Returns an array of shape ``(count, n)``.  The mean (bin 0) and, for even ``n``, the Nyquist
-    bin keep zero phase so that the series are real.
+    The mean (bin 0) and, for even ``n``, the Nyquist bin keep zero phase so that the series
+    are real.  ``amplitudes`` may stop short of the Nyquist bin (the leading bins of a
+    band-limited spectrum).  Returns shape ``(count, len(amplitudes))``.
     """
-    phases = rng.uniform(0.0, 2.0 * np.pi, size=(count, amplitudes.size))
+    m = amplitudes.shape[-1]
+    phases = rng.uniform(0.0, 2.0 * np.pi, size=(count, m))
     phases[:, 0] = 0.0
-    if n % 2 == 0:
+    if n % 2 == 0 and m == n // 2 + 1:
         phases[:, -1] = 0.0
-    return fft.irfft(amplitudes * np.exp(1j * phases), n, axis=-1)
+    return amplitudes * np.exp(1j * phases)
+
+
+def phase_randomised(amplitudes: np.ndarray, n: int, rng: np.random.Generator, *, count: int) -> np.ndarray:
+    """``count`` real series of length ``n`` with the given one-sided amplitudes and random phases
+    (the inverse FFT of :func:`random_phase_spectra`); shape ``(count, n)``."""
+    return fft.irfft(random_phase_spectra(amplitudes, n, rng, count=count), n, axis=-1)

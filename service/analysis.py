@@ -49,6 +49,8 @@ class WindowReport:
             "dnl_threshold": _num(d.robust.threshold) if d.robust else None,
             "amplitude": _num(g.amplitude) if g else None,
             "guards": list(d.guards),
+            "harmonic_ratio": _num(d.robust.harmonic_ratio) if d.robust else None,
+            "stick_slip_episodes": d.stick_slip.episodes if d.stick_slip else None,
         }
 
 
@@ -64,6 +66,11 @@ class LoopReport:
     windows: tuple[WindowReport, ...]
     n_duplicates: int = 0
 
+    @property
+    def stick_slip_windows(self) -> int:
+        """Windows without a sustained oscillation in which the valve did not follow the OP."""
+        return sum(1 for w in self.windows if w.diagnosis.stick_slip and w.diagnosis.stick_slip.episodes)
+
     def to_json(self) -> dict:
         return {
             "source": self.source,
@@ -74,6 +81,7 @@ class LoopReport:
             "tdnl": _num(self.tdnl),
             "reason": self.reason,
             "duplicate_rows_dropped": self.n_duplicates,
+            "stick_slip_windows": self.stick_slip_windows,
             "windows": [w.to_json() for w in self.windows],
         }
 
@@ -112,7 +120,11 @@ def analyze_loop(
     """Diagnose every window of a loop record and the loop as a whole.
 
     Windows during which the loop is not in automatic (``mode`` present and not 1) are
-    ``invalid``: a loop in manual cannot show a control-loop oscillation.
+    ``invalid``: a loop in manual cannot show a control-loop oscillation.  When the PV is
+    analysed, the set point and the OP go with it: a window with a set-point change is
+    analysed as control error, the OP is the second witness of a non-linearity and, in a
+    window that does not oscillate, PV/OP/SP are searched for stick-slip episodes
+    (:func:`pipeline.diagnosis.diagnose_window`).
     """
     name, x = select_signal(data, signal)
     n = x.size
@@ -123,8 +135,16 @@ def analyze_loop(
     for s in window_starts(n, window=window, hop=hop):
         sl = slice(s, s + window)
         mode = None if data.mode is None else data.mode[sl]
-        diag = diagnose_window(x[sl], fs=fs, config=config, mode=mode)
+        extra = {}
+        if name in ("pv", "error") and _has_data(data.op):
+            extra["op"] = data.op[sl]
+        if name == "pv" and data.sp is not None and _has_data(data.sp):
+            extra["sp"] = data.sp[sl]
+        diag = diagnose_window(x[sl], fs=fs, config=config, mode=mode, **extra)
         reports.append(WindowReport(float(data.t[s]), float(data.t[min(s + window, n) - 1]), diag))
     verdict, tdnl_value, reason = overall_verdict([r.diagnosis for r in reports])
+    stuck = sum(1 for r in reports if r.diagnosis.stick_slip and r.diagnosis.stick_slip.episodes)
+    if stuck:
+        reason += f"; the valve did not follow the OP (stiction or deadband) in {stuck} non-oscillating window(s)"
     return LoopReport(data.source, name, n, data.sample_time_s, verdict, tdnl_value, reason, tuple(reports),
                       n_duplicates=data.n_duplicates)
