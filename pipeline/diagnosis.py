@@ -6,7 +6,11 @@ Two methods, chosen by :attr:`DiagnosisConfig.method`:
 guards; then the DNL of the phase-locked mean wave with a surrogate significance test
 (:mod:`pipeline.robust`), on the analysed signal and, when given, on the OP as well; verdict
 ``nonlinear`` when the DNL is both significant (p <= alpha) and large (>= min_dnl), ``linear``
-when it is not significant, ``uncertain`` in between or when a data-quality guard fails.
+when it is not significant or smaller than a sticking valve makes, ``uncertain`` when the
+significance is borderline (alpha < p <= 2 alpha with a large DNL) or a data-quality guard
+fails.  When the analysed signal does not pass the gate but the OP does, the OP's period is
+used.  A window that does not oscillate is searched for stick-slip episodes
+(:mod:`pipeline.stickslip`) when PV, OP and SP are known.
 
 ``paper``: the method of Aftab, Hovd, Huang & Sivalingam (2016) as published:
 a window that oscillates (Thornhill et al. 2003 gate, :mod:`pipeline.gate`) is decomposed by
@@ -244,12 +248,13 @@ def _setpoint_change(sp: np.ndarray, pv: np.ndarray) -> str | None:
     return f"set point changes inside the window (range {span:.4g})"
 
 
-def _usable_op(op: np.ndarray | None, n: int, config: DiagnosisConfig) -> np.ndarray | None:
-    """The OP as a detrended second witness, when it has the window's length and few gaps."""
+def _usable_op(op: np.ndarray | None, x: np.ndarray, config: DiagnosisConfig) -> np.ndarray | None:
+    """The OP as a detrended second witness, when it has the window's length, few gaps and is
+    not the analysed series itself."""
     if op is None:
         return None
     op = np.asarray(op, dtype=np.float64)
-    if op.shape != (n,):
+    if op.shape != x.shape or np.array_equal(op, x, equal_nan=True):
         return None
     filled, _, problem = fill_gaps(op, max_fraction=config.max_missing_fraction, max_gap=config.max_gap_samples)
     if problem or np.ptp(filled) == 0:
@@ -280,10 +285,17 @@ def _diagnose_robust(x, *, fs, config, gate, n_filled, op, notes) -> WindowDiagn
     guards = tuple(window_guards(x, op=op))
     note = ("; " + "; ".join(notes + list(guards))) if notes or guards else ""
     common = dict(gate=gate, n_filled=n_filled, method="robust", guards=guards)
+    witness = _usable_op(op, x, config)
+    if not gate.oscillating and witness is not None:
+        # the loop oscillates if its OP does: a slow process can blur the PV's limit cycle
+        op_gate = oscillation_gate(witness, fs=fs, config=config.gate)
+        if op_gate.oscillating:
+            gate = op_gate
+            common["gate"] = gate
+            note = f"; the analysed signal alone does not pass the gate, the OP does ({op_gate.reason})" + note
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason + note, **common)
     rc = config.robust
-    witness = _usable_op(op, x.size, config)
     r = robust_dnl_test(detrend_linear(x), fs=fs, period_s=gate.period_s, config=rc, other=witness)
     common.update(dnl=(r.dnl,), tdnl=r.dnl, robust=r)
     if not np.isfinite(r.p_value):
@@ -298,7 +310,8 @@ def _diagnose_robust(x, *, fs, config, gate, n_filled, op, notes) -> WindowDiagn
         return WindowDiagnosis("nonlinear", f"{figures}: phase-locked intra-wave frequency modulation, "
                                f"non-linear cause (e.g. valve stiction){note}", **common)
     if significant:
-        return WindowDiagnosis("uncertain", f"{figures}: significant but small (< {rc.min_dnl:g}){note}", **common)
+        return WindowDiagnosis("linear", f"{figures}: a phase-locked distortion, but smaller than a sticking valve "
+                               f"makes (< {rc.min_dnl:g}): linear cause (tuning or disturbance){note}", **common)
     if large and r.p_value <= 2 * rc.alpha:
         return WindowDiagnosis("uncertain", f"{figures}: borderline significance{note}", **common)
     return WindowDiagnosis("linear", f"{figures}: no more intra-wave modulation than a linear oscillation, "

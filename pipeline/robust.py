@@ -134,8 +134,9 @@ def _refine_f0(spec: np.ndarray, f: np.ndarray, f0: float) -> float:
 
 
 def _band_bins(f: np.ndarray, *, f0: float, n_harmonics: int) -> int:
-    """Number of leading spectral bins that hold the analysed band (up to ``2 (H + 1/2) f0``)."""
-    return min(f.size, int(np.ceil(2.0 * (n_harmonics + 0.5) * f0 / (f[1] - f[0]))) + 1)
+    """Number of leading spectral bins that hold the analysed band (up to ``1.25 (H + 1/2) f0``,
+    where the fourth-order low-pass edge of :func:`mean_wave` is down to 0.03)."""
+    return min(f.size, int(np.ceil(1.25 * (n_harmonics + 0.5) * f0 / (f[1] - f[0]))) + 1)
 
 
 def mean_wave(spectra: np.ndarray, f: np.ndarray, n: int, *, f0: float, n_harmonics: int) -> np.ndarray:
@@ -154,10 +155,12 @@ def mean_wave(spectra: np.ndarray, f: np.ndarray, n: int, *, f0: float, n_harmon
 
     Notes
     -----
-    Everything above ``2 (H + 1/2) f0`` is negligible after the band-pass, so the time series
-    are synthesised from the spectra on a coarser grid of ``n'`` samples over the same span
-    (spectral truncation, an exact resampling of band-limited series); the least-squares sums
-    are then taken over ``n'`` samples instead of ``n``.
+    Everything above ``1.25 (H + 1/2) f0`` is negligible after the band-pass, so the time
+    series are synthesised from the spectra on a coarser grid of ``n'`` samples over the same
+    span (spectral truncation, an exact resampling of band-limited series); the least-squares
+    sums are then taken over ``n'`` samples instead of ``n`` (their products reach at most
+    ``2 (H + 1/2) f0``, below the coarse grid's sampling rate, so no product aliases to zero
+    frequency).  The basis and the sums are single precision (ten unknowns, well conditioned).
     """
     spectra = np.atleast_2d(spectra)
     h = n_harmonics
@@ -168,24 +171,26 @@ def mean_wave(spectra: np.ndarray, f: np.ndarray, n: int, *, f0: float, n_harmon
     sp, fk = spectra[:, :m], f[:m]
     # analytic signal of the fundamental: one-sided spectrum doubled, inverse complex FFT
     wf = band_weights(fk, f_lo=f0 / 1.5, f_hi=1.5 * f0, order=4)
+    wf /= band_weights(np.array([f0]), f_lo=f0 / 1.5, f_hi=1.5 * f0, order=4)[0]  # unit gain at f0
     full = np.zeros((sp.shape[0], n2), dtype=complex)
     full[:, :m] = (2.0 * scale) * sp * wf
     z = fft.ifft(full, n2, axis=-1)
     amp = np.abs(z)
     unit = np.divide(z, amp, out=np.zeros_like(z), where=amp > 0)
     # the oscillation band, real
-    wb = band_weights(fk, f_lo=f0 / 2.0, f_hi=(h + 0.5) * f0)
-    c = fft.irfft(scale * sp * wb, n2, axis=-1)
+    wb = band_weights(fk, f_lo=f0 / 2.0, f_hi=(h + 0.5) * f0, order=4)
+    c = fft.irfft(scale * sp * wb, n2, axis=-1).astype(np.float32)
     # basis a(t) e^{i k phi}, k = 1..H, as real cos/sin columns
-    powers = np.empty((sp.shape[0], h, n2), dtype=complex)
+    powers = np.empty((sp.shape[0], h, n2), dtype=np.complex64)
     powers[:, 0] = z
+    unit = unit.astype(np.complex64)
     for k in range(1, h):
-        powers[:, k] = powers[:, k - 1] * unit
+        np.multiply(powers[:, k - 1], unit, out=powers[:, k])
     basis = np.concatenate([powers.real, powers.imag], axis=1)  # (S, 2H, n2)
-    bw = basis * np.hanning(n2)
-    gram = np.matmul(bw, basis.transpose(0, 2, 1))
-    rhs = np.matmul(bw, c[:, :, None])[:, :, 0]
-    gram += 1e-12 * np.trace(gram, axis1=-2, axis2=-1)[:, None, None] * np.eye(2 * h)
+    bw = basis * np.hanning(n2).astype(np.float32)
+    gram = np.matmul(bw, basis.transpose(0, 2, 1)).astype(np.float64)
+    rhs = np.matmul(bw, c[:, :, None])[:, :, 0].astype(np.float64)
+    gram += 1e-9 * np.trace(gram, axis1=-2, axis2=-1)[:, None, None] * np.eye(2 * h)
     coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
     return np.stack([coef[:, :h], coef[:, h:]], axis=-1)
 
