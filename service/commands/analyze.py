@@ -24,11 +24,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--window", type=int, default=None, help="window length in samples (default 4096 or the record)")
     p.add_argument("--hop", type=int, default=None, help="hop between windows in samples (default window/2)")
     p.add_argument("--method", choices=["robust", "paper"], default="robust",
-                   help="robust: band-passed DNL with a surrogate significance test (default); "
+                   help="robust: DNL of the phase-locked mean wave with a surrogate significance test, "
+                        "set-point changes analysed as control error, OP as second witness (default); "
                         "paper: Aftab et al. 2016 as published (EMD, lambda pruning, TDNL > threshold)")
-    p.add_argument("--threshold", type=float, default=0.1,
-                   help="paper method: TDNL above which the cause is non-linear; robust method: smallest DNL "
-                        "reported as non-linear (0.1)")
+    p.add_argument("--threshold", type=float, default=None,
+                   help="paper method: TDNL above which the cause is non-linear (default 0.1); robust method: "
+                        "smallest DNL of the mean wave reported as non-linear (default 0.05)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT", help="write the report as JSON")
 
 
@@ -37,10 +38,13 @@ def run(args: argparse.Namespace) -> int:
         v = getattr(args, name)
         if v is not None and v < 1:
             raise UsageError(f"--{name} {v}: must be at least 1 sample")
-    if not args.threshold > 0:
+    if args.threshold is not None and not args.threshold > 0:
         raise UsageError(f"--threshold {args.threshold}: must be > 0")
-    config = DiagnosisConfig(method=args.method, threshold=args.threshold,
-                             robust=RobustConfig(min_dnl=args.threshold))
+    if args.threshold is None:
+        config = DiagnosisConfig(method=args.method)
+    else:
+        config = DiagnosisConfig(method=args.method, threshold=args.threshold,
+                                 robust=RobustConfig(min_dnl=args.threshold))
     data = read_loop_csv(args.file)
     report = analyze_loop(data, signal=args.signal, window=args.window, hop=args.hop, config=config)
     print_report(report)
