@@ -52,6 +52,7 @@ def isdb_labels(root: Path) -> dict[str, dict[str, str]]:
 
 
 @pytest.mark.bench
+@pytest.mark.timeout(7200)  # long on a shared machine
 def test_accuracy_real_data():
     isdb, plant = SHARED_DATA / "isdb", SHARED_DATA / "plant"
     if not isdb.is_dir():

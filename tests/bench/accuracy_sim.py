@@ -233,6 +233,7 @@ def print_report(rows) -> None:
 
 
 @pytest.mark.bench
+@pytest.mark.timeout(7200)  # long on a shared machine
 def test_accuracy_simulated():
     n = int(os.environ.get("LOOPWATCH_SIM_LOOPS", "360"))
     seeds = [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]

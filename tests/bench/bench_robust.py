@@ -58,6 +58,7 @@ def timed(kw: dict, config: DiagnosisConfig):
 
 
 @pytest.mark.bench
+@pytest.mark.timeout(7200)  # long on a shared machine
 def test_robust_cost_per_oscillating_window():
     robust, paper = DiagnosisConfig(), DiagnosisConfig(method="paper")
     rows = []
