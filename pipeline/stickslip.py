@@ -85,7 +85,8 @@ def stick_slip_episodes(pv: np.ndarray, op: np.ndarray, sp: np.ndarray, *, z: fl
     d_op = op_s[w:] - op_s[:-w]
     d_pv = pv_s[w:] - pv_s[:-w]
     # monotonic OP over the segment: its range is no larger than its net travel plus noise
-    mono = np.array([np.ptp(op_s[i:i + w + 1]) <= abs(d_op[i]) + z * se_op for i in range(d_op.size)])
+    seg = np.lib.stride_tricks.sliding_window_view(op_s, w + 1)
+    mono = seg.max(axis=1) - seg.min(axis=1) <= np.abs(d_op) + z * se_op
     held = np.abs(e_s[:-w] + e_s[w:]) / 2.0 > z * s_pv
     stuck = (np.abs(d_op) > z * se_op) & (np.abs(d_pv) < z * se_pv) & held & mono
     episodes = 0
