@@ -23,61 +23,231 @@ from .errors import PipelineConfigError, SignalError
 __all__ = ["EMDConfig", "emd", "not_a_knot_spline"]
 
 
+def _not_a_knot_coefficients(xk: np.ndarray, yk: np.ndarray, ends: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """Coefficients of not-a-knot cubic splines, several at once.
+
+    ``xk``/``yk`` hold the knots of consecutive splines, spline ``b`` ending before ``ends[b]``
+    (each with at least 4 strictly increasing knots).  Returns the slopes ``s`` at the knots and
+    ``c2``, ``c3`` per segment: on segment ``j``, ``y = yk[j] + s[j] u + c2[j] u^2 + c3[j] u^3``
+    with ``u = t - xk[j]`` (the segment joining two splines is meaningless).
+
+    The arithmetic is that of ``scipy.interpolate.CubicSpline`` step by step (the same
+    tridiagonal system solved by the same LAPACK ``gtsv``, the coefficients formed as
+    ``CubicHermiteSpline`` forms them), so the numbers are the same to the last bit; the splines
+    are uncoupled blocks of one tridiagonal system (zero coupling terms, no pivoting across).
+    """
+    n = xk.size
+    dx = xk[1:] - xk[:-1]
+    slope = (yk[1:] - yk[:-1]) / dx
+    dl, d, du, b = np.empty(n - 1), np.empty(n), np.empty(n - 1), np.empty(n)
+    d[1:-1] = 2 * (dx[:-1] + dx[1:])
+    du[1:] = dx[:-1]
+    dl[:-1] = dx[1:]
+    b[1:-1] = 3 * (dx[1:] * slope[:-1] + dx[:-1] * slope[1:])
+    last = np.array(ends) - 1
+    first = np.concatenate(([0], last[:-1] + 1))
+    w0 = xk[first + 2] - xk[first]  # not-a-knot at the first interior knot
+    d[first], du[first] = dx[first + 1], w0
+    b[first] = ((dx[first] + 2 * w0) * dx[first + 1] * slope[first] + dx[first] ** 2 * slope[first + 1]) / w0
+    w1 = xk[last] - xk[last - 2]  # and at the last interior knot
+    d[last], dl[last - 1] = dx[last - 2], w1
+    b[last] = (dx[last - 1] ** 2 * slope[last - 2] + (2 * w1 + dx[last - 1]) * dx[last - 2] * slope[last - 1]) / w1
+    du[last[:-1]] = dl[last[:-1]] = 0.0  # no coupling between splines
+    s = dgtsv(dl, d, du, b, overwrite_dl=1, overwrite_d=1, overwrite_du=1, overwrite_b=1)[3]
+    t = (s[:-1] + s[1:] - 2 * slope) / dx
+    return s, (slope - s[:-1]) / dx - t, t / dx
+
+
+def _evaluate(xk, yk, coefficients, counts, t):
+    """Evaluate spline segments at ``t``: ``counts[j]`` consecutive points in segment ``j``."""
+    s, c2, c3 = coefficients
+    u = t - np.repeat(xk[:-1], counts)
+    # y + s u + c2 u^2 + c3 u^3 summed in the order of scipy's PPoly evaluation (same rounding)
+    y = np.repeat(s[:-1], counts)
+    y *= u
+    y += np.repeat(yk[:-1], counts)
+    u2 = u * u
+    term = np.repeat(c2, counts)
+    term *= u2
+    y += term
+    u2 *= u
+    term = np.repeat(c3, counts)
+    term *= u2
+    y += term
+    return y
+
+
 def not_a_knot_spline(xk: np.ndarray, yk: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Cubic spline through ``(xk, yk)`` with not-a-knot ends, evaluated at sorted ``t``.
 
     The same spline as ``scipy.interpolate.CubicSpline(xk, yk)(t)`` (PyEMD's "cubic" envelope),
-    to rounding, at about half the cost: the slopes come from one tridiagonal LAPACK solve and
+    to rounding, at a fraction of the cost: the slopes come from one tridiagonal LAPACK solve and
     the segment of every ``t`` from one ``searchsorted`` of the knots into ``t``.  ``xk`` must be
     strictly increasing with at least 4 knots, ``t`` sorted and inside ``[xk[0], xk[-1]]``.
     """
-    n = xk.size
-    dx = np.diff(xk)
-    slope = np.diff(yk) / dx
-    dl, d, du, b = np.empty(n - 1), np.empty(n), np.empty(n - 1), np.empty(n)
-    d[1:-1] = 2.0 * (dx[:-1] + dx[1:])
-    du[1:] = dx[:-1]
-    dl[:-1] = dx[1:]
-    b[1:-1] = 3.0 * (dx[1:] * slope[:-1] + dx[:-1] * slope[1:])
-    w0 = xk[2] - xk[0]  # not-a-knot at the first interior knot
-    d[0], du[0] = dx[1], w0
-    b[0] = ((dx[0] + 2.0 * w0) * dx[1] * slope[0] + dx[0] ** 2 * slope[1]) / w0
-    w1 = xk[-1] - xk[-3]  # and at the last interior knot
-    d[-1], dl[-1] = dx[-2], w1
-    b[-1] = (dx[-1] ** 2 * slope[-2] + (2.0 * w1 + dx[-1]) * dx[-2] * slope[-1]) / w1
-    s = dgtsv(dl, d, du, b, overwrite_dl=1, overwrite_d=1, overwrite_du=1, overwrite_b=1)[3]
-    c2 = (3.0 * slope - 2.0 * s[:-1] - s[1:]) / dx
-    c3 = (s[:-1] + s[1:] - 2.0 * slope) / dx**2
     first = np.searchsorted(t, xk[1:-1], side="left")  # first t of segments 1 .. n-2
-    seg = np.repeat(np.arange(n - 1), np.diff(np.r_[0, first, t.size]))
-    u = t - xk[seg]
-    return yk[seg] + u * (s[seg] + u * (c2[seg] + u * c3[seg]))
+    counts = np.diff(np.concatenate(([0], first, [t.size])))
+    return _evaluate(xk, yk, _not_a_knot_coefficients(xk, yk, (xk.size,)), counts, t)
+
+
+def _simple_extrema(s: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Indices of the local maxima and minima of ``s`` as PyEMD's ``_find_extrema_simple``
+    defines them (a sample above/below both neighbours: ``d1 * d2 < 0`` on the differences),
+    or ``None`` when ``s`` has a flat step (``d == 0``: PyEMD's plateau rules apply) or a product
+    ``d1 * d2`` underflows (PyEMD's test then misses that extremum)."""
+    d = s[1:] - s[:-1]
+    if not d.all():
+        return None
+    up = d > 0
+    turn = np.flatnonzero(up[1:] != up[:-1])  # d changes sign between turn and turn + 1
+    if turn.size and not np.all(d[turn] * d[turn + 1] < 0):
+        return None
+    turn += 1
+    # without flat steps maxima and minima alternate; the first turn after a rise is a maximum
+    first_is_max = bool(turn.size) and bool(up[turn[0] - 1])
+    return (turn[0::2], turn[1::2]) if first_is_max else (turn[1::2], turn[0::2])
+
+
+def _mirror_indices(s: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int):
+    """PyEMD's ``prepare_points_simple`` boundary mirroring, on sample indices.
+
+    Returns ``(left_max, left_min, lsym, right_max, right_min, rsym)``: the extrema mirrored about
+    sample ``lsym`` (``rsym``) to extend the envelopes past the left (right) end, as Python lists
+    in the order PyEMD places them; ``None`` in the rare cases where PyEMD falls back to mirroring
+    whole extrema arrays (too few extrema of one kind), left to PyEMD itself.
+    """
+    n = s.size
+    end_max, end_min = imax.size, imin.size
+    head_max, head_min = imax[: nbsym + 1].tolist(), imin[: nbsym + 1].tolist()
+    tail_max, tail_min = imax[-nbsym - 1 :].tolist(), imin[-nbsym - 1 :].tolist()
+    # left end
+    if head_max[0] < head_min[0]:
+        if s[0] > s[head_min[0]]:
+            lmax, lmin, lsym = head_max[1 : min(end_max, nbsym + 1)][::-1], head_min[: min(end_min, nbsym)][::-1], head_max[0]
+        else:
+            lmax, lmin, lsym = head_max[: min(end_max, nbsym)][::-1], head_min[: min(end_min, nbsym - 1)][::-1] + [0], 0
+    else:
+        if s[0] < s[head_max[0]]:
+            lmax, lmin, lsym = head_max[: min(end_max, nbsym)][::-1], head_min[1 : min(end_min, nbsym + 1)][::-1], head_min[0]
+        else:
+            lmax, lmin, lsym = head_max[: min(end_max, nbsym - 1)][::-1] + [0], head_min[: min(end_min, nbsym)][::-1], 0
+    # right end (PyEMD slices the last nbsym (+1) extrema; the tails hold nbsym + 1 of them)
+    def last(tail, size, k):  # ind[max(size - k, 0):]
+        return tail[len(tail) - min(k, size):] if k > 0 else []
+    if tail_max[-1] < tail_min[-1]:
+        if s[-1] < s[tail_max[-1]]:
+            rmax, rmin, rsym = last(tail_max, end_max, nbsym)[::-1], last(tail_min, end_min, nbsym + 1)[:-1][::-1], tail_min[-1]
+        else:
+            rmax, rmin, rsym = (last(tail_max, end_max, nbsym - 1) + [n - 1])[::-1], last(tail_min, end_min, nbsym)[::-1], n - 1
+    else:
+        if s[-1] > s[tail_min[-1]]:
+            rmax, rmin, rsym = last(tail_max, end_max, nbsym + 1)[:-1][::-1], last(tail_min, end_min, nbsym)[::-1], tail_max[-1]
+        else:
+            rmax, rmin, rsym = last(tail_max, end_max, nbsym)[::-1], (last(tail_min, end_min, nbsym - 1) + [n - 1])[::-1], n - 1
+    if not (lmin and rmin and lmax and rmax):
+        return None
+    # mirrored points that fall inside the window: mirror about the window's end instead
+    if 2 * lsym - lmin[0] > 0 or 2 * lsym - lmax[0] > 0:
+        if lsym == head_max[0]:
+            lmax = head_max[: min(end_max, nbsym)][::-1]
+        else:
+            lmin = head_min[: min(end_min, nbsym)][::-1]
+        if lsym == 0:
+            return None  # PyEMD raises "Left edge BUG"; let it
+        lsym = 0
+    if 2 * rsym - rmin[-1] < n - 1 or 2 * rsym - rmax[-1] < n - 1:
+        if rsym == tail_max[-1]:
+            rmax = last(tail_max, end_max, nbsym)[::-1]
+        else:
+            rmin = last(tail_min, end_min, nbsym)[::-1]
+        if rsym == n - 1:
+            return None  # PyEMD raises "Right edge BUG"
+        rsym = n - 1
+    return lmax, lmin, lsym, rmax, rmin, rsym
 
 
 class _BoundedEMD(EMD):
-    """PyEMD's EMD with two shortcuts that leave its numbers unchanged.
+    """PyEMD's EMD with its fixed-sifting (``FIXE``) loop rewritten lean, same numbers.
 
-    * the cubic envelopes are built by :func:`not_a_knot_spline`;
-    * every sifting iteration of ``EMD.emd`` finds the extrema of the same proto-IMF twice (once
-      to count them, once in ``extract_max_min_spline``); the second time reuses the first result.
+    ``EMD.emd`` spends most of a sift in numpy call overhead: it finds the extrema of every
+    proto-IMF twice, builds the mirrored boundary points with ~50 small-array calls, and fits
+    the envelopes with ``scipy.interpolate.CubicSpline``.  :meth:`emd` runs the same algorithm
+    for ``FIXE > 0`` with PyEMD's settings ``extrema_detection="simple"``, ``spline_kind="cubic"``
+    (the only ones :func:`emd` uses): PyEMD's extrema definition, its boundary mirroring
+    (``prepare_points_simple``, ``nbsym`` points), the same not-a-knot cubic envelopes (one
+    tridiagonal solve each), ``FIXE`` sifts per IMF, ``MAX_ITERATION``, PyEMD's end condition
+    and IMF cap.  Where a proto-IMF needs one of PyEMD's rare special rules (flat steps, fewer
+    than 4 knots in an envelope, too few extrema to mirror) that sift is done by PyEMD's own
+    methods.  tests/test_pipeline_emd.py checks the IMFs against stock PyEMD to 1e-9.
     """
 
-    _last_input: np.ndarray | None = None
-    _last_extrema = None
+    def _envelope_mean(self, T: np.ndarray, imf: np.ndarray, extrema) -> np.ndarray:
+        """Mean of the upper and lower envelopes of ``imf`` (PyEMD's ``extract_max_min_spline``):
+        the two splines solved and evaluated together."""
+        n = imf.size
+        mirrored = _mirror_indices(imf, extrema[0], extrema[1], self.nbsym) if extrema is not None else None
+        if mirrored is not None:
+            lmax, lmin, lsym, rmax, rmin, rsym = mirrored
+            imax, imin = extrema
+            n_max = len(lmax) + imax.size + len(rmax)
+            idx = np.concatenate((lmax, imax, rmax, lmin, imin, rmin))
+            pos = idx.astype(np.float64)
+            for lo, size, centre in ((0, len(lmax), lsym), (n_max - len(rmax), len(rmax), rsym),
+                                     (n_max, len(lmin), lsym), (idx.size - len(rmin), len(rmin), rsym)):
+                pos[lo:lo + size] = 2 * centre - pos[lo:lo + size]
+            increasing = pos[1:] > pos[:-1]
+            increasing[n_max - 1] = True  # the junction of the two splines
+            covered = pos[0] <= 0 and pos[n_max] <= 0 and pos[n_max - 1] >= n - 1 and pos[-1] >= n - 1
+            if n_max > 3 and idx.size - n_max > 3 and covered and increasing.all():
+                # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1]);
+                # positions are whole samples and the mirrored knots lie outside [0, n - 1]
+                edges = np.clip(pos, 0, n).astype(np.intp)
+                edges[n_max - 1] = n
+                edges[n_max:] += n
+                edges[-1] = 2 * n
+                val = imf[idx]
+                coefficients = _not_a_knot_coefficients(pos, val, (n_max, idx.size))
+                both = _evaluate(pos, val, coefficients, np.diff(edges), np.concatenate((T, T)))
+                return 0.5 * (both[:n] + both[n:])
+        max_env, min_env, _, _ = EMD.extract_max_min_spline(self, T, imf)
+        return 0.5 * (max_env + min_env)
 
-    def find_extrema(self, T, S):
-        last = self._last_input
-        if last is not None and last.shape == S.shape and np.array_equal(last, S):
-            return self._last_extrema
-        result = super().find_extrema(T, S)
-        self._last_input, self._last_extrema = S.copy(), result
-        return result
-
-    def spline_points(self, T, extrema):
-        if self.spline_kind != "cubic" or extrema.shape[1] <= 3:
-            return super().spline_points(T, extrema)
-        t = T[(T >= extrema[0, 0]) & (T <= extrema[0, -1])]
-        return t, not_a_knot_spline(extrema[0], extrema[1], t)
+    def emd(self, S, T=None, max_imf=-1):
+        if not (self.FIXE > 0 and self.extrema_detection == "simple" and self.spline_kind == "cubic" and T is None):
+            return super().emd(S, T=T, max_imf=max_imf)
+        S = np.asarray(S, dtype=np.float64)
+        n = S.size
+        T = np.arange(n, dtype=np.float64)  # PyEMD's normalised timeline for T=None
+        IMF = np.empty((0, n))
+        ext_no = -1
+        finished = False
+        while not finished:
+            imf = S - np.sum(IMF, axis=0)
+            it = 0
+            while True:
+                it += 1
+                if it >= self.MAX_ITERATION:
+                    break
+                extrema = _simple_extrema(imf)
+                if extrema is None:
+                    found = EMD._find_extrema_simple(T, imf)
+                    ext_no = len(found[0]) + len(found[2])
+                else:
+                    ext_no = extrema[0].size + extrema[1].size
+                if ext_no <= 2:  # a trend: the decomposition is over
+                    finished = True
+                    break
+                imf = imf - self._envelope_mean(T, imf, extrema)
+                if it >= self.FIXE:
+                    break
+            IMF = np.vstack((IMF, imf))
+            if self.end_condition(S, IMF) or IMF.shape[0] == max_imf:
+                finished = True
+        if ext_no <= 2:  # the last proto-IMF was a trend: it stays in the residue
+            IMF = IMF[:-1]
+        self.imfs = IMF.copy()
+        self.residue = S - np.sum(self.imfs, axis=0)
+        return np.vstack((IMF, self.residue)) if not np.allclose(self.residue, 0) else IMF
 
 
 @dataclass(frozen=True)
