@@ -38,30 +38,49 @@ def _not_a_knot_coefficients(xk: np.ndarray, yk: np.ndarray, ends: tuple[int, ..
     """
     n = xk.size
     dx = xk[1:] - xk[:-1]
-    slope = (yk[1:] - yk[:-1]) / dx
+    slope = yk[1:] - yk[:-1]
+    slope /= dx
     dl, d, du, b = np.empty(n - 1), np.empty(n), np.empty(n - 1), np.empty(n)
-    d[1:-1] = 2 * (dx[:-1] + dx[1:])
+    np.add(dx[:-1], dx[1:], out=d[1:-1])
+    d[1:-1] *= 2
     du[1:] = dx[:-1]
     dl[:-1] = dx[1:]
-    b[1:-1] = 3 * (dx[1:] * slope[:-1] + dx[:-1] * slope[1:])
-    last = np.array(ends) - 1
-    first = np.concatenate(([0], last[:-1] + 1))
-    w0 = xk[first + 2] - xk[first]  # not-a-knot at the first interior knot
-    d[first], du[first] = dx[first + 1], w0
-    b[first] = ((dx[first] + 2 * w0) * dx[first + 1] * slope[first] + dx[first] ** 2 * slope[first + 1]) / w0
-    w1 = xk[last] - xk[last - 2]  # and at the last interior knot
-    d[last], dl[last - 1] = dx[last - 2], w1
-    b[last] = (dx[last - 1] ** 2 * slope[last - 2] + (2 * w1 + dx[last - 1]) * dx[last - 2] * slope[last - 1]) / w1
-    du[last[:-1]] = dl[last[:-1]] = 0.0  # no coupling between splines
+    np.multiply(dx[1:], slope[:-1], out=b[1:-1])
+    b[1:-1] += dx[:-1] * slope[1:]
+    b[1:-1] *= 3
+    start = 0
+    for end in ends:  # the end rows of each spline, in Python floats (same IEEE arithmetic)
+        x0, x1, x2 = xk[start:start + 3].tolist()
+        dx0, dx1, w = x1 - x0, x2 - x1, x2 - x0  # not-a-knot at the first interior knot
+        s0, s1 = slope[start:start + 2].tolist()
+        d[start], du[start] = dx1, w
+        b[start] = ((dx0 + 2 * w) * dx1 * s0 + dx0 * dx0 * s1) / w
+        x0, x1, x2 = xk[end - 3:end].tolist()
+        dx0, dx1, w = x1 - x0, x2 - x1, x2 - x0  # and at the last interior knot
+        s0, s1 = slope[end - 3:end - 1].tolist()
+        d[end - 1], dl[end - 2] = dx0, w
+        b[end - 1] = (dx1 * dx1 * s0 + (2 * w + dx1) * dx0 * s1) / w
+        if end < n:  # no coupling between splines
+            du[end - 1] = dl[end - 1] = 0.0
+        start = end
     s = dgtsv(dl, d, du, b, overwrite_dl=1, overwrite_d=1, overwrite_du=1, overwrite_b=1)[3]
-    t = (s[:-1] + s[1:] - 2 * slope) / dx
-    return s, (slope - s[:-1]) / dx - t, t / dx
+    # t = (s[:-1] + s[1:] - 2 slope) / dx, c2 = (slope - s[:-1]) / dx - t, c3 = t / dx
+    t = s[:-1] + s[1:]
+    t -= 2 * slope
+    t /= dx
+    c2 = slope
+    c2 -= s[:-1]
+    c2 /= dx
+    c2 -= t
+    t /= dx
+    return s, c2, t
 
 
 def _evaluate(xk, yk, coefficients, counts, t):
     """Evaluate spline segments at ``t``: ``counts[j]`` consecutive points in segment ``j``."""
     s, c2, c3 = coefficients
-    u = t - np.repeat(xk[:-1], counts)
+    u = np.repeat(xk[:-1], counts)
+    np.subtract(t, u, out=u)
     # y + s u + c2 u^2 + c3 u^3 summed in the order of scipy's PPoly evaluation (same rounding)
     y = np.repeat(s[:-1], counts)
     y *= u
@@ -93,15 +112,16 @@ def not_a_knot_spline(xk: np.ndarray, yk: np.ndarray, t: np.ndarray) -> np.ndarr
 def _simple_extrema(s: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Indices of the local maxima and minima of ``s`` as PyEMD's ``_find_extrema_simple``
     defines them (a sample above/below both neighbours: ``d1 * d2 < 0`` on the differences),
-    or ``None`` when ``s`` has a flat step (``d == 0``: PyEMD's plateau rules apply) or a product
-    ``d1 * d2`` underflows (PyEMD's test then misses that extremum)."""
+    or ``None`` when ``s`` has a flat step (``d == 0``: PyEMD's plateau rules apply) or a
+    difference so small that a product ``d1 * d2`` could underflow (PyEMD's test would then
+    miss that extremum): those cases are left to PyEMD."""
     d = s[1:] - s[:-1]
-    if not d.all():
+    # |d| >= 1e-160 everywhere: no flat step, and no product d1 * d2 underflows to zero, so PyEMD's
+    # sign test is a change of the sign of d
+    if not np.abs(d).min() >= 1e-160:
         return None
     up = d > 0
     turn = np.flatnonzero(up[1:] != up[:-1])  # d changes sign between turn and turn + 1
-    if turn.size and not np.all(d[turn] * d[turn + 1] < 0):
-        return None
     turn += 1
     # without flat steps maxima and minima alternate; the first turn after a rise is a maximum
     first_is_max = bool(turn.size) and bool(up[turn[0] - 1])
@@ -181,9 +201,9 @@ class _BoundedEMD(EMD):
     methods.  tests/test_pipeline_emd.py checks the IMFs against stock PyEMD to 1e-9.
     """
 
-    def _envelope_mean(self, T: np.ndarray, imf: np.ndarray, extrema) -> np.ndarray:
+    def _envelope_mean(self, T: np.ndarray, TT: np.ndarray, imf: np.ndarray, extrema) -> np.ndarray:
         """Mean of the upper and lower envelopes of ``imf`` (PyEMD's ``extract_max_min_spline``):
-        the two splines solved and evaluated together."""
+        the two splines solved and evaluated together; ``TT`` is ``T`` twice."""
         n = imf.size
         mirrored = _mirror_indices(imf, extrema[0], extrema[1], self.nbsym) if extrema is not None else None
         if mirrored is not None:
@@ -191,24 +211,26 @@ class _BoundedEMD(EMD):
             imax, imin = extrema
             n_max = len(lmax) + imax.size + len(rmax)
             idx = np.concatenate((lmax, imax, rmax, lmin, imin, rmin))
-            pos = idx.astype(np.float64)
-            for lo, size, centre in ((0, len(lmax), lsym), (n_max - len(rmax), len(rmax), rsym),
-                                     (n_max, len(lmin), lsym), (idx.size - len(rmin), len(rmin), rsym)):
-                pos[lo:lo + size] = 2 * centre - pos[lo:lo + size]
-            increasing = pos[1:] > pos[:-1]
-            increasing[n_max - 1] = True  # the junction of the two splines
-            covered = pos[0] <= 0 and pos[n_max] <= 0 and pos[n_max - 1] >= n - 1 and pos[-1] >= n - 1
-            if n_max > 3 and idx.size - n_max > 3 and covered and increasing.all():
-                # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1]);
-                # positions are whole samples and the mirrored knots lie outside [0, n - 1]
+            # knot positions: the mirrored extrema about lsym / rsym, in increasing order by
+            # construction; the envelopes must cover [0, n - 1] and join the extrema increasingly
+            lpos = [[2 * lsym - i for i in lmax], [2 * lsym - i for i in lmin]]
+            rpos = [[2 * rsym - i for i in rmax], [2 * rsym - i for i in rmin]]
+            ok = n_max > 3 and idx.size - n_max > 3
+            for left, inner, right in zip(lpos, extrema, rpos):
+                ok = ok and left[0] <= 0 and right[-1] >= n - 1 and left[-1] < inner[0] and inner[-1] < right[0]
+            if ok:
+                pos = np.concatenate((lpos[0], imax, rpos[0], lpos[1], imin, rpos[1])).astype(np.float64)
+                # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1])
                 edges = np.clip(pos, 0, n).astype(np.intp)
                 edges[n_max - 1] = n
                 edges[n_max:] += n
                 edges[-1] = 2 * n
                 val = imf[idx]
                 coefficients = _not_a_knot_coefficients(pos, val, (n_max, idx.size))
-                both = _evaluate(pos, val, coefficients, np.diff(edges), np.concatenate((T, T)))
-                return 0.5 * (both[:n] + both[n:])
+                both = _evaluate(pos, val, coefficients, np.diff(edges), TT)
+                both[:n] += both[n:]
+                both[:n] *= 0.5
+                return both[:n]
         max_env, min_env, _, _ = EMD.extract_max_min_spline(self, T, imf)
         return 0.5 * (max_env + min_env)
 
@@ -218,6 +240,7 @@ class _BoundedEMD(EMD):
         S = np.asarray(S, dtype=np.float64)
         n = S.size
         T = np.arange(n, dtype=np.float64)  # PyEMD's normalised timeline for T=None
+        TT = np.concatenate((T, T))
         IMF = np.empty((0, n))
         ext_no = -1
         finished = False
@@ -237,7 +260,7 @@ class _BoundedEMD(EMD):
                 if ext_no <= 2:  # a trend: the decomposition is over
                     finished = True
                     break
-                imf = imf - self._envelope_mean(T, imf, extrema)
+                imf -= self._envelope_mean(T, TT, imf, extrema)
                 if it >= self.FIXE:
                     break
             IMF = np.vstack((IMF, imf))
