@@ -219,15 +219,20 @@ class _BoundedEMD(EMD):
             for left, inner, right in zip(lpos, extrema, rpos):
                 ok = ok and left[0] <= 0 and right[-1] >= n - 1 and left[-1] < inner[0] and inner[-1] < right[0]
             if ok:
-                pos = np.concatenate((lpos[0], imax, rpos[0], lpos[1], imin, rpos[1])).astype(np.float64)
-                # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1])
-                edges = np.clip(pos, 0, n).astype(np.intp)
-                edges[n_max - 1] = n
-                edges[n_max:] += n
-                edges[-1] = 2 * n
+                k = idx.size
+                pos, edges = idx.astype(np.float64), idx.copy()
+                for lo, hi, mpos in ((0, len(lmax), lpos[0]), (n_max - len(rmax), n_max, rpos[0]),
+                                     (n_max, n_max + len(lmin), lpos[1]), (k - len(rmin), k, rpos[1])):
+                    pos[lo:hi] = mpos
+                    edges[lo:hi] = [min(max(p, 0), n) for p in mpos]
+                # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1]),
+                # the two splines one after the other on TT
+                edges[n_max - 1] = edges[k - 1] = n
+                counts = np.diff(edges)
+                counts[n_max - 1] = 0
                 val = imf[idx]
                 coefficients = _not_a_knot_coefficients(pos, val, (n_max, idx.size))
-                both = _evaluate(pos, val, coefficients, np.diff(edges), TT)
+                both = _evaluate(pos, val, coefficients, counts, TT)
                 both[:n] += both[n:]
                 both[:n] *= 0.5
                 return both[:n]
@@ -237,15 +242,22 @@ class _BoundedEMD(EMD):
     def emd(self, S, T=None, max_imf=-1):
         if not (self.FIXE > 0 and self.extrema_detection == "simple" and self.spline_kind == "cubic" and T is None):
             return super().emd(S, T=T, max_imf=max_imf)
+        self.sift(S, max_imf)
+        return np.vstack((self.imfs, self.residue)) if not np.allclose(self.residue, 0) else self.imfs
+
+    def sift(self, S: np.ndarray, max_imf: int = -1) -> None:
+        """``EMD.emd`` for ``FIXE > 0`` (see the class docstring); sets ``imfs`` and ``residue``."""
         S = np.asarray(S, dtype=np.float64)
         n = S.size
         T = np.arange(n, dtype=np.float64)  # PyEMD's normalised timeline for T=None
         TT = np.concatenate((T, T))
-        IMF = np.empty((0, n))
+        imfs = []
+        total = np.zeros(n)  # sum of the IMFs, row by row as np.sum(IMF, axis=0) adds them
+        residue = S - total
         ext_no = -1
         finished = False
         while not finished:
-            imf = S - np.sum(IMF, axis=0)
+            imf = residue.copy()
             it = 0
             while True:
                 it += 1
@@ -263,14 +275,18 @@ class _BoundedEMD(EMD):
                 imf -= self._envelope_mean(T, TT, imf, extrema)
                 if it >= self.FIXE:
                     break
-            IMF = np.vstack((IMF, imf))
-            if self.end_condition(S, IMF) or IMF.shape[0] == max_imf:
+            imfs.append(imf)
+            total += imf
+            residue = S - total
+            # PyEMD's end_condition: the residue's range or its L1 norm below the thresholds
+            if len(imfs) == max_imf or (
+                residue.max() - residue.min() < self.range_thr or np.sum(np.abs(residue)) < self.total_power_thr
+            ):
                 finished = True
         if ext_no <= 2:  # the last proto-IMF was a trend: it stays in the residue
-            IMF = IMF[:-1]
-        self.imfs = IMF.copy()
+            imfs.pop()
+        self.imfs = np.array(imfs).reshape(len(imfs), n)
         self.residue = S - np.sum(self.imfs, axis=0)
-        return np.vstack((IMF, self.residue)) if not np.allclose(self.residue, 0) else IMF
 
 
 @dataclass(frozen=True)
@@ -319,7 +335,10 @@ def emd(x: np.ndarray, *, config: EMDConfig = EMDConfig()) -> tuple[np.ndarray, 
     kwargs = {"FIXE": config.sifts} if config.sifts else {}
     # one instance per call: PyEMD keeps state on the instance
     decomposer = _BoundedEMD(**kwargs) if config.sifts else EMD()
-    decomposer.emd(x, max_imf=config.max_imfs)
+    if config.sifts:
+        decomposer.sift(x, config.max_imfs)
+    else:
+        decomposer.emd(x, max_imf=config.max_imfs)
     imfs, residue = decomposer.get_imfs_and_residue()
     imfs = np.asarray(imfs, dtype=np.float64).reshape(-1, x.size)
     return imfs, x - imfs.sum(axis=0)
