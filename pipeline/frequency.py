@@ -18,7 +18,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import hilbert
+from scipy import fft
 
 __all__ = ["instantaneous_frequency", "zero_crossings", "zero_crossing_references"]
 
@@ -37,13 +37,24 @@ def instantaneous_frequency(imfs: np.ndarray, *, fs: float, axis: int = -1) -> t
     amplitude : ``a(t) = |Z(t)|`` (eq. 4), same shape.
     """
     x = np.moveaxis(np.asarray(imfs, dtype=np.float64), axis, -1)
-    z = hilbert(x, axis=-1)
+    z = _analytic(x)
     w = np.empty(x.shape)
     w[..., 1:-1] = np.angle(z[..., 2:] * np.conj(z[..., :-2])) / 2.0
     w[..., 0] = np.angle(z[..., 1] * np.conj(z[..., 0]))
     w[..., -1] = np.angle(z[..., -1] * np.conj(z[..., -2]))
     freq = w * (fs / (2.0 * np.pi))
     return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
+
+
+def _analytic(x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.hilbert(x, axis=-1)`` without its array-API dispatch (the same FFTs and
+    operations, so the same numbers): keep the mean and Nyquist bins, double the positive
+    frequencies, zero the negative ones."""
+    n = x.shape[-1]
+    spec = fft.fft(x, axis=-1)
+    spec[..., 1:(n + 1) // 2] *= 2.0
+    spec[..., n // 2 + 1:] = 0.0
+    return fft.ifft(spec, axis=-1, overwrite_x=True)
 
 
 def zero_crossings(c: np.ndarray) -> np.ndarray:

@@ -5,10 +5,12 @@ sifting budget and an IMF cap) with the same chain on PyEMD's default settings (
 rule, no IMF cap).  The set holds sine, square and triangular waves at several periods, with
 and without noise, the paper's closed-loop cases, and real OP windows from the ISDB (loops flagged oscillating
 that have 4096 samples or more).  Acceptance (issue 2): median <= 10 ms,
-max <= 50 ms, and >= 10x faster than the PyEMD-defaults chain.
+max <= 50 ms, and >= 10x faster than the PyEMD-defaults chain.  Wall and CPU time are both
+reported (see :func:`time_chain`).
 """
 
 import dataclasses
+import os
 import time
 
 import numpy as np
@@ -59,13 +61,18 @@ def real_windows() -> dict[str, np.ndarray]:
     return out
 
 
-def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[float, str]:
-    times = []
+def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[float, float, str]:
+    """Median wall time and median CPU time of the process (``time.process_time``) over REPEATS runs.
+
+    On a shared machine the wall time includes waiting for a core; the CPU time does not (it
+    still includes slow-downs from sharing caches and hyper-threads with other processes)."""
+    wall, cpu = [], []
     for _ in range(REPEATS):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         d = diagnose_window(x, fs=1.0, config=config)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), d.verdict
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return float(np.median(wall)), float(np.median(cpu)), d.verdict
 
 
 @pytest.mark.bench
@@ -74,19 +81,21 @@ def test_chain_cost_per_4096_window():
     defaults = DiagnosisConfig(method="paper", emd=EMDConfig(sifts=0, max_imfs=-1))
     rows = []
     for name, x in window_set().items():
-        tb, vb = time_chain(x, bounded)
-        td, vd = time_chain(x, defaults)
-        rows.append((name, tb, td, vb, vd))
+        wb, cb, vb = time_chain(x, bounded)
+        wd, cd, vd = time_chain(x, defaults)
+        rows.append((name, wb, wd, cb, cd, vb, vd))
     # the acceptance is on oscillating windows: the gate keeps the others away from EMD
-    osc = [r for r in rows if r[3] != "not_oscillating"]
-    tb = np.array([r[1] for r in osc])
-    td = np.array([r[2] for r in osc])
-    print(f"\n[bench_pipeline] {machine_note()}")
-    print(f"{'window (4096 samples)':32s} {'bounded ms':>10s} {'defaults ms':>11s} {'ratio':>6s}  verdicts")
-    for name, b, d, vb, vd in rows:
-        print(f"{name:32s} {1e3 * b:10.2f} {1e3 * d:11.1f} {d / b:6.1f}  {vb} / {vd}")
+    osc = [r for r in rows if r[5] != "not_oscillating"]
+    print(f"\n[bench_pipeline] {machine_note()}, load average {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    print(f"{'window (4096 samples)':32s} {'bounded ms':>10s} {'defaults ms':>11s} {'ratio':>6s}"
+          f" {'cpu bounded':>11s} {'cpu defaults':>12s}  verdicts")
+    for name, wb, wd, cb, cd, vb, vd in rows:
+        print(f"{name:32s} {1e3 * wb:10.2f} {1e3 * wd:11.1f} {wd / wb:6.1f} {1e3 * cb:11.2f} {1e3 * cd:12.1f}  {vb} / {vd}")
     print(f"statistics over the {len(osc)} windows the gate passes ({len(rows) - len(osc)} rejected, not counted)")
-    print(f"bounded : median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms")
-    print(f"defaults: median {1e3 * np.median(td):.1f} ms, max {1e3 * td.max():.1f} ms")
-    print(f"speed-up: ratio of medians {np.median(td) / np.median(tb):.1f}x, median of ratios {np.median(td / tb):.1f}x")
-    assert tb.max() < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
+    for label, b_col, d_col in (("wall time", 1, 2), ("CPU time", 3, 4)):
+        tb = np.array([r[b_col] for r in osc])
+        td = np.array([r[d_col] for r in osc])
+        print(f"{label}: bounded median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms;"
+              f" defaults median {1e3 * np.median(td):.1f} ms, max {1e3 * td.max():.1f} ms;"
+              f" ratio of medians {np.median(td) / np.median(tb):.1f}x, median of ratios {np.median(td / tb):.1f}x")
+    assert max(r[1] for r in osc) < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
