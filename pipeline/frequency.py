@@ -37,13 +37,20 @@ def instantaneous_frequency(imfs: np.ndarray, *, fs: float, axis: int = -1) -> t
     amplitude : ``a(t) = |Z(t)|`` (eq. 4), same shape.
     """
     x = np.moveaxis(np.asarray(imfs, dtype=np.float64), axis, -1)
+    freq, z = frequency_and_analytic(x, fs=fs)
+    return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
+
+
+def frequency_and_analytic(x: np.ndarray, *, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Instantaneous frequency (Hz) along the last axis of float array ``x`` and its analytic
+    signal ``Z`` (:func:`instantaneous_frequency` without the amplitude)."""
     z = _analytic(x)
     w = np.empty(x.shape)
-    w[..., 1:-1] = np.angle(z[..., 2:] * np.conj(z[..., :-2])) / 2.0
+    np.divide(np.angle(z[..., 2:] * np.conj(z[..., :-2])), 2.0, out=w[..., 1:-1])
     w[..., 0] = np.angle(z[..., 1] * np.conj(z[..., 0]))
     w[..., -1] = np.angle(z[..., -1] * np.conj(z[..., -2]))
-    freq = w * (fs / (2.0 * np.pi))
-    return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
+    w *= fs / (2.0 * np.pi)
+    return w, z
 
 
 def _analytic(x: np.ndarray) -> np.ndarray:
