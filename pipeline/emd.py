@@ -228,7 +228,7 @@ class _BoundedEMD(EMD):
                 # segment j holds the samples xk[j] <= t < xk[j+1] (the last one also t = xk[-1]),
                 # the two splines one after the other on TT
                 edges[n_max - 1] = edges[k - 1] = n
-                counts = np.diff(edges)
+                counts = edges[1:] - edges[:-1]
                 counts[n_max - 1] = 0
                 val = imf[idx]
                 coefficients = _not_a_knot_coefficients(pos, val, (n_max, idx.size))
