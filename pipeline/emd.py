@@ -198,7 +198,8 @@ class _BoundedEMD(EMD):
     tridiagonal solve each), ``FIXE`` sifts per IMF, ``MAX_ITERATION``, PyEMD's end condition
     and IMF cap.  Where a proto-IMF needs one of PyEMD's rare special rules (flat steps, fewer
     than 4 knots in an envelope, too few extrema to mirror) that sift is done by PyEMD's own
-    methods.  tests/test_pipeline_emd.py checks the IMFs against stock PyEMD to 1e-9.
+    methods.  The arithmetic follows PyEMD and scipy operation by operation, so the IMFs come
+    out bit for bit; tests/test_pipeline_emd.py checks them against stock PyEMD (to 1e-9).
     """
 
     def _envelope_mean(self, T: np.ndarray, TT: np.ndarray, imf: np.ndarray, extrema) -> np.ndarray:
@@ -239,15 +240,25 @@ class _BoundedEMD(EMD):
         max_env, min_env, _, _ = EMD.extract_max_min_spline(self, T, imf)
         return 0.5 * (max_env + min_env)
 
+    def _lean(self, S) -> bool:
+        """Whether :meth:`sift` applies: fixed sifting, PyEMD's simple extrema and cubic
+        envelopes, float64 samples (PyEMD computes in the input's precision)."""
+        return (self.FIXE > 0 and self.extrema_detection == "simple" and self.spline_kind == "cubic"
+                and np.asarray(S).dtype == np.float64)
+
     def emd(self, S, T=None, max_imf=-1):
-        if not (self.FIXE > 0 and self.extrema_detection == "simple" and self.spline_kind == "cubic" and T is None):
+        if T is not None or not self._lean(S):
             return super().emd(S, T=T, max_imf=max_imf)
         self.sift(S, max_imf)
         return np.vstack((self.imfs, self.residue)) if not np.allclose(self.residue, 0) else self.imfs
 
     def sift(self, S: np.ndarray, max_imf: int = -1) -> None:
-        """``EMD.emd`` for ``FIXE > 0`` (see the class docstring); sets ``imfs`` and ``residue``."""
-        S = np.asarray(S, dtype=np.float64)
+        """``EMD.emd(S, max_imf=max_imf)`` for fixed sifting (see the class docstring), without
+        its return value; sets ``imfs`` and ``residue``."""
+        if not self._lean(S):
+            raise PipelineConfigError("the lean sifting loop needs FIXE > 0, simple extrema, cubic "
+                                      "envelopes and float64 samples; use EMD.emd otherwise")
+        S = np.asarray(S)
         n = S.size
         T = np.arange(n, dtype=np.float64)  # PyEMD's normalised timeline for T=None
         TT = np.concatenate((T, T))

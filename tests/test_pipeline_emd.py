@@ -83,3 +83,16 @@ def test_not_a_knot_spline_matches_scipy_bit_for_bit_or_close():
     yk = np.sin(xk)
     t = np.arange(0.0, 100.0)
     np.testing.assert_allclose(not_a_knot_spline(xk, yk, t), CubicSpline(xk, yk)(t), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_emd_method_returns_what_pyemd_returns(dtype):
+    """PyEMD's calling convention (IMFs and residue stacked) and its precision (float32 input is
+    sifted in float32 by PyEMD, so the lean float64 loop must not take it)."""
+    from pipeline.emd import _BoundedEMD
+
+    x = SIGNALS["two tones + square + noise"].astype(dtype)
+    ours = _BoundedEMD(FIXE=4).emd(x, max_imf=3)
+    ref = EMD(FIXE=4).emd(x, max_imf=3)
+    assert ours.dtype == ref.dtype and ours.shape == ref.shape
+    np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-9 if dtype == np.float64 else 0)
