@@ -8,6 +8,9 @@ project's stack notes).  A monitor needs a bounded cost, so we use the fixed sif
 ``FIXE`` (exactly ``sifts`` sifting iterations per IMF, Huang & Wu's "fixed sifting") and cap the
 number of IMFs: the cost is then at most ``sifts * max_imfs`` sifts.  The first IMFs of a capped
 run are identical to those of an uncapped run with the same stop rule.
+
+The sifting itself is PyEMD's algorithm run by a lean loop (:class:`_BoundedEMD`) that gives
+PyEMD's IMFs bit for bit at a fraction of its numpy call overhead per sift.
 """
 
 from __future__ import annotations
@@ -310,10 +313,10 @@ class EMDConfig:
         stop rule, which is unbounded and exists only for comparison.
     max_imfs : the most IMFs extracted; the remainder is the residue.  ``-1`` = no cap.
 
-    The defaults (4 sifts, 3 IMFs: at most 12 sifts, about 10 ms for 4096 samples) were chosen
-    by cost: the paper's verdicts on its Tables 2 and 3 are the same with 4, 8 or 10 sifts and
-    3 or 4 IMFs (tests/test_paper_reproduction.py; figures in ACCURACY.md), while 8 sifts and 4
-    IMFs cost about twice as much (BENCHMARKS.md).
+    The defaults (4 sifts, 3 IMFs: at most 12 sifts, a few ms for 4096 samples, BENCHMARKS.md)
+    were chosen by cost: the paper's verdicts on its Tables 2 and 3 are the same with 4, 8 or 10
+    sifts and 3 or 4 IMFs (tests/test_paper_reproduction.py; figures in ACCURACY.md), while 8
+    sifts and 4 IMFs cost about twice as much.
     """
 
     sifts: int = 4
