@@ -36,8 +36,11 @@ def instantaneous_frequency(imfs: np.ndarray, *, fs: float, axis: int = -1) -> t
     freq : same shape as ``imfs``, Hz.
     amplitude : ``a(t) = |Z(t)|`` (eq. 4), same shape.
     """
-    x = np.moveaxis(np.asarray(imfs, dtype=np.float64), axis, -1)
-    freq, z = frequency_and_analytic(x, fs=fs)
+    x = np.asarray(imfs, dtype=np.float64)
+    last = axis in (-1, x.ndim - 1)
+    freq, z = frequency_and_analytic(x if last else np.moveaxis(x, axis, -1), fs=fs)
+    if last:
+        return freq, np.abs(z)
     return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
 
 

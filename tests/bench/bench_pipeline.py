@@ -6,7 +6,7 @@ rule, no IMF cap).  The set holds sine, square and triangular waves at several p
 and without noise, the paper's closed-loop cases, and real OP windows from the ISDB (loops flagged oscillating
 that have 4096 samples or more).  Acceptance (issue 2): median <= 10 ms,
 max <= 50 ms, and >= 10x faster than the PyEMD-defaults chain.  Wall and CPU time are both
-reported (see :func:`time_chain`).
+reported (see :func:`time_chain`).  Run it alone: it measures the machine as much as the code.
 """
 
 import dataclasses
@@ -61,18 +61,23 @@ def real_windows() -> dict[str, np.ndarray]:
     return out
 
 
-def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[float, float, str]:
-    """Median wall time and median CPU time of the process (``time.process_time``) over REPEATS runs.
+MEASURES = ("wall median", "CPU median", "CPU best")
 
-    On a shared machine the wall time includes waiting for a core; the CPU time does not (it
-    still includes slow-downs from sharing caches and hyper-threads with other processes)."""
+
+def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[dict[str, float], str]:
+    """Wall time (median) and CPU time of the process (``time.process_time``; median and best)
+    over REPEATS runs of the chain on one window.
+
+    On a shared machine the wall time includes waiting for a core; the CPU time does not, but it
+    still includes slow-downs from sharing caches and hyper-threads with other processes, which
+    the best of the runs is least affected by."""
     wall, cpu = [], []
     for _ in range(REPEATS):
         t0, c0 = time.perf_counter(), time.process_time()
         d = diagnose_window(x, fs=1.0, config=config)
         wall.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
-    return float(np.median(wall)), float(np.median(cpu)), d.verdict
+    return dict(zip(MEASURES, (float(np.median(wall)), float(np.median(cpu)), float(np.min(cpu))))), d.verdict
 
 
 @pytest.mark.bench
@@ -81,21 +86,22 @@ def test_chain_cost_per_4096_window():
     defaults = DiagnosisConfig(method="paper", emd=EMDConfig(sifts=0, max_imfs=-1))
     rows = []
     for name, x in window_set().items():
-        wb, cb, vb = time_chain(x, bounded)
-        wd, cd, vd = time_chain(x, defaults)
-        rows.append((name, wb, wd, cb, cd, vb, vd))
+        tb, vb = time_chain(x, bounded)
+        td, vd = time_chain(x, defaults)
+        rows.append((name, tb, td, vb, vd))
     # the acceptance is on oscillating windows: the gate keeps the others away from EMD
-    osc = [r for r in rows if r[5] != "not_oscillating"]
+    osc = [r for r in rows if r[3] != "not_oscillating"]
     print(f"\n[bench_pipeline] {machine_note()}, load average {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
-    print(f"{'window (4096 samples)':32s} {'bounded ms':>10s} {'defaults ms':>11s} {'ratio':>6s}"
-          f" {'cpu bounded':>11s} {'cpu defaults':>12s}  verdicts")
-    for name, wb, wd, cb, cd, vb, vd in rows:
-        print(f"{name:32s} {1e3 * wb:10.2f} {1e3 * wd:11.1f} {wd / wb:6.1f} {1e3 * cb:11.2f} {1e3 * cd:12.1f}  {vb} / {vd}")
+    print("ms per window, bounded / PyEMD defaults (ratio):")
+    print(f"{'window (4096 samples)':30s}" + "".join(f" {m:>24s}" for m in MEASURES) + "  verdicts")
+    for name, tb, td, vb, vd in rows:
+        cells = "".join(f" {1e3 * tb[m]:7.2f} / {1e3 * td[m]:7.1f} ({td[m] / tb[m]:4.1f})" for m in MEASURES)
+        print(f"{name:30s}{cells}  {vb} / {vd}")
     print(f"statistics over the {len(osc)} windows the gate passes ({len(rows) - len(osc)} rejected, not counted)")
-    for label, b_col, d_col in (("wall time", 1, 2), ("CPU time", 3, 4)):
-        tb = np.array([r[b_col] for r in osc])
-        td = np.array([r[d_col] for r in osc])
-        print(f"{label}: bounded median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms;"
+    for m in MEASURES:
+        tb = np.array([r[1][m] for r in osc])
+        td = np.array([r[2][m] for r in osc])
+        print(f"{m:11s}: bounded median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms;"
               f" defaults median {1e3 * np.median(td):.1f} ms, max {1e3 * td.max():.1f} ms;"
               f" ratio of medians {np.median(td) / np.median(tb):.1f}x, median of ratios {np.median(td / tb):.1f}x")
-    assert max(r[1] for r in osc) < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
+    assert max(r[1]["CPU median"] for r in osc) < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
