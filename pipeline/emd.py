@@ -266,8 +266,8 @@ class _BoundedEMD(EMD):
         T = np.arange(n, dtype=np.float64)  # PyEMD's normalised timeline for T=None
         TT = np.concatenate((T, T))
         imfs = []
-        total = np.zeros(n)  # sum of the IMFs, row by row as np.sum(IMF, axis=0) adds them
-        residue = S - total
+        total = None  # sum of the IMFs, row by row as np.sum(IMF, axis=0) adds them
+        residue = S.copy()
         ext_no = -1
         finished = False
         while not finished:
@@ -290,7 +290,10 @@ class _BoundedEMD(EMD):
                 if it >= self.FIXE:
                     break
             imfs.append(imf)
-            total += imf
+            if total is None:
+                total = imf.copy()
+            else:
+                total += imf
             residue = S - total
             # PyEMD's end_condition: the residue's range or its L1 norm below the thresholds
             if len(imfs) == max_imf or (
