@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .frequency import instantaneous_frequency, zero_crossing_references, zero_crossings
+from .frequency import frequency_and_analytic, zero_crossing_references, zero_crossings
 
 __all__ = ["imf_dnl", "tdnl", "DNLFigures"]
 
@@ -58,7 +58,7 @@ def imf_dnl(c: np.ndarray, *, fs: float, end_trim_waves: int = 1, freq: np.ndarr
     if zc.size < 3:
         return DNLFigures(float("nan"), float("nan"), 0)
     if freq is None:
-        freq, _ = instantaneous_frequency(c, fs=fs)
+        freq = frequency_and_analytic(c, fs=fs)[0]
     ifz, az = zero_crossing_references(c, zc, fs=fs)
     trim = 2 * end_trim_waves
     if zc.size < 2 * trim + 3:

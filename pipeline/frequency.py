@@ -18,7 +18,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import hilbert
+from scipy import fft
 
 __all__ = ["instantaneous_frequency", "zero_crossings", "zero_crossing_references"]
 
@@ -36,14 +36,35 @@ def instantaneous_frequency(imfs: np.ndarray, *, fs: float, axis: int = -1) -> t
     freq : same shape as ``imfs``, Hz.
     amplitude : ``a(t) = |Z(t)|`` (eq. 4), same shape.
     """
-    x = np.moveaxis(np.asarray(imfs, dtype=np.float64), axis, -1)
-    z = hilbert(x, axis=-1)
+    x = np.asarray(imfs, dtype=np.float64)
+    last = axis in (-1, x.ndim - 1)
+    freq, z = frequency_and_analytic(x if last else np.moveaxis(x, axis, -1), fs=fs)
+    if last:
+        return freq, np.abs(z)
+    return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
+
+
+def frequency_and_analytic(x: np.ndarray, *, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Instantaneous frequency (Hz) along the last axis of float array ``x`` and its analytic
+    signal ``Z`` (:func:`instantaneous_frequency` without the amplitude)."""
+    z = _analytic(x)
     w = np.empty(x.shape)
-    w[..., 1:-1] = np.angle(z[..., 2:] * np.conj(z[..., :-2])) / 2.0
+    np.divide(np.angle(z[..., 2:] * np.conj(z[..., :-2])), 2.0, out=w[..., 1:-1])
     w[..., 0] = np.angle(z[..., 1] * np.conj(z[..., 0]))
     w[..., -1] = np.angle(z[..., -1] * np.conj(z[..., -2]))
-    freq = w * (fs / (2.0 * np.pi))
-    return np.moveaxis(freq, -1, axis), np.moveaxis(np.abs(z), -1, axis)
+    w *= fs / (2.0 * np.pi)
+    return w, z
+
+
+def _analytic(x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.hilbert(x, axis=-1)`` without its array-API dispatch (the same FFTs and
+    operations, so the same numbers): keep the mean and Nyquist bins, double the positive
+    frequencies, zero the negative ones."""
+    n = x.shape[-1]
+    spec = fft.fft(x, axis=-1)
+    spec[..., 1:(n + 1) // 2] *= 2.0
+    spec[..., n // 2 + 1:] = 0.0
+    return fft.ifft(spec, axis=-1, overwrite_x=True)
 
 
 def zero_crossings(c: np.ndarray) -> np.ndarray:

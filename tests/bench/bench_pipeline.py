@@ -5,10 +5,12 @@ sifting budget and an IMF cap) with the same chain on PyEMD's default settings (
 rule, no IMF cap).  The set holds sine, square and triangular waves at several periods, with
 and without noise, the paper's closed-loop cases, and real OP windows from the ISDB (loops flagged oscillating
 that have 4096 samples or more).  Acceptance (issue 2): median <= 10 ms,
-max <= 50 ms, and >= 10x faster than the PyEMD-defaults chain.
+max <= 50 ms, and >= 10x faster than the PyEMD-defaults chain.  Wall and CPU time are both
+reported (see :func:`time_chain`).  Run it alone: it measures the machine as much as the code.
 """
 
 import dataclasses
+import os
 import time
 
 import numpy as np
@@ -59,13 +61,23 @@ def real_windows() -> dict[str, np.ndarray]:
     return out
 
 
-def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[float, str]:
-    times = []
+MEASURES = ("wall median", "CPU median", "CPU best")
+
+
+def time_chain(x: np.ndarray, config: DiagnosisConfig) -> tuple[dict[str, float], str]:
+    """Wall time (median) and CPU time of the process (``time.process_time``; median and best)
+    over REPEATS runs of the chain on one window.
+
+    On a shared machine the wall time includes waiting for a core; the CPU time does not, but it
+    still includes slow-downs from sharing caches and hyper-threads with other processes, which
+    the best of the runs is least affected by."""
+    wall, cpu = [], []
     for _ in range(REPEATS):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         d = diagnose_window(x, fs=1.0, config=config)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), d.verdict
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return dict(zip(MEASURES, (float(np.median(wall)), float(np.median(cpu)), float(np.min(cpu))))), d.verdict
 
 
 @pytest.mark.bench
@@ -79,14 +91,17 @@ def test_chain_cost_per_4096_window():
         rows.append((name, tb, td, vb, vd))
     # the acceptance is on oscillating windows: the gate keeps the others away from EMD
     osc = [r for r in rows if r[3] != "not_oscillating"]
-    tb = np.array([r[1] for r in osc])
-    td = np.array([r[2] for r in osc])
-    print(f"\n[bench_pipeline] {machine_note()}")
-    print(f"{'window (4096 samples)':32s} {'bounded ms':>10s} {'defaults ms':>11s} {'ratio':>6s}  verdicts")
-    for name, b, d, vb, vd in rows:
-        print(f"{name:32s} {1e3 * b:10.2f} {1e3 * d:11.1f} {d / b:6.1f}  {vb} / {vd}")
+    print(f"\n[bench_pipeline] {machine_note()}, load average {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    print("ms per window, bounded / PyEMD defaults (ratio):")
+    print(f"{'window (4096 samples)':30s}" + "".join(f" {m:>24s}" for m in MEASURES) + "  verdicts")
+    for name, tb, td, vb, vd in rows:
+        cells = "".join(f" {1e3 * tb[m]:7.2f} / {1e3 * td[m]:7.1f} ({td[m] / tb[m]:4.1f})" for m in MEASURES)
+        print(f"{name:30s}{cells}  {vb} / {vd}")
     print(f"statistics over the {len(osc)} windows the gate passes ({len(rows) - len(osc)} rejected, not counted)")
-    print(f"bounded : median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms")
-    print(f"defaults: median {1e3 * np.median(td):.1f} ms, max {1e3 * td.max():.1f} ms")
-    print(f"speed-up: ratio of medians {np.median(td) / np.median(tb):.1f}x, median of ratios {np.median(td / tb):.1f}x")
-    assert tb.max() < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
+    for m in MEASURES:
+        tb = np.array([r[1][m] for r in osc])
+        td = np.array([r[2][m] for r in osc])
+        print(f"{m:11s}: bounded median {1e3 * np.median(tb):.2f} ms, max {1e3 * tb.max():.2f} ms;"
+              f" defaults median {1e3 * np.median(td):.1f} ms, max {1e3 * td.max():.1f} ms;"
+              f" ratio of medians {np.median(td) / np.median(tb):.1f}x, median of ratios {np.median(td / tb):.1f}x")
+    assert max(r[1]["CPU median"] for r in osc) < 0.5  # sanity; the acceptance figures are reported, see BENCHMARKS.md
