@@ -154,7 +154,9 @@ _LOOP_CONFIG = {
 _RUN_CONFIG = {
     "title": "loopwatch.RunConfig", "type": "object",
     "description": "The configuration the monitor ran with.",
-    "properties": {"timestamp": _TIME, "instance": {"type": "string"}, "alerts": {
+    "properties": {"timestamp": _TIME, "instance": {"type": "string"},
+                   "run_id": {"type": "string", "description": "one monitor run; alert states start afresh"},
+                   "alerts": {
         "type": "object", "properties": {"raise_after": {"type": "integer", "minimum": 1},
                                          "clear_after": {"type": "integer", "minimum": 1}},
         "required": ["raise_after", "clear_after"]}, "settings": {"type": "object"}},

@@ -26,8 +26,10 @@ import logging
 import os
 import queue
 import re
+import struct
 import threading
 import time
+import uuid
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,7 +120,7 @@ def _rewrite(src: Path, fin, tmp: Path, dst: Path) -> RecoveryResult:
                     n += 1
                 elif isinstance(rec, Metadata):
                     w.add_metadata(rec.name, rec.metadata)
-        except (McapError, ValueError, EOFError, OSError) as exc:   # EndOfFile is an McapError
+        except (McapError, ValueError, EOFError, OSError, struct.error) as exc:   # a record cut short
             truncated, err = True, f"{type(exc).__name__}: {exc}"
         w.finish()
     os.replace(tmp, dst)
@@ -230,6 +232,7 @@ class McapRecorder:
         self.instance = instance
         self.run_config = dict(run_config or {})
         self.run_config.setdefault("instance", instance)
+        self.run_config.setdefault("run_id", uuid.uuid4().hex)   # one monitor run (alert states start afresh)
         self.rotate_bytes, self.rotate_s = int(rotate_bytes), float(rotate_s)
         self.retention_bytes, self.retention_s = retention_bytes, retention_s
         self.flush_s, self.retry_s, self.chunk_size = float(flush_s), float(retry_s), int(chunk_size)

@@ -96,6 +96,23 @@ def recorded_windows(paths: Sequence[str | Path], *, loops: Iterable[str] | None
         yield _recorded(group)
 
 
+class _Hysteresis:
+    """The alert state machines of a replay: one :class:`MonitorCore` per monitor run (a run
+    starts with fresh alert states, so does its replay) and alert hysteresis."""
+
+    def __init__(self) -> None:
+        self.key = None
+        self.core: MonitorCore | None = None
+
+    def apply(self, rec: RecordedWindow, result: WindowResult) -> Alert | None:
+        key = (rec.group.run.get("run_id"), rec.raise_after, rec.clear_after)
+        if key != self.key:
+            self.key = key
+            self.core = MonitorCore(loop_config=lambda _id: LoopConfig(), raise_after=rec.raise_after,
+                                    clear_after=rec.clear_after, clock=lambda: 0.0)
+        return self.core.apply(rec.window, result)
+
+
 def _same(a: dict | None, b: dict | None) -> bool:
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
@@ -106,19 +123,21 @@ def replay_windows(paths: Sequence[str | Path], *, loops: Iterable[str] | None =
     """Re-analyse every recorded window (see :func:`recorded_windows`) with the configuration it was
     recorded with, re-run the alert hysteresis, and feed ``sinks`` the recomputed result and alert.
 
-    The hysteresis starts fresh at the first replayed window of each loop, so alerts are
-    comparable with the recorded ones when the replay starts where the loop's recording starts.
+    Alert states: before ``t_from``, the recorded results of the same files bring the alert
+    state machines to where the monitor had them (so a replay of the hour of an incident gives
+    the alerts the monitor gave); a new monitor run (``run_id`` of the file) starts them afresh,
+    as the monitor did.  When the files given start in the middle of a run, the first alerts of
+    the replay can differ from the recorded ones (``same_alert`` False), the verdicts cannot.
     """
-    core: MonitorCore | None = None
-    hysteresis = None
+    hysteresis = _Hysteresis()
+    if t_from is not None:   # warm-up on the recorded results: no analysis
+        for group in read_recording(paths, loops=loops, end_ns=_time_ns(t_from) - 1):
+            rec = _recorded(group)
+            hysteresis.apply(rec, rec.result)
     for rec in recorded_windows(paths, loops=loops, t_from=t_from, t_to=t_to):
-        if (rec.raise_after, rec.clear_after) != hysteresis:
-            hysteresis = (rec.raise_after, rec.clear_after)
-            core = MonitorCore(loop_config=lambda _id: LoopConfig(), raise_after=rec.raise_after,
-                               clear_after=rec.clear_after, clock=lambda: 0.0)
         w = rec.window
         result = analyze(w)
-        alert = core.apply(w, result)
+        alert = hysteresis.apply(rec, result)
         end_ns = rec.group.window.log_time
         same_result = _same(json.loads(codec.dumps(codec.encode_result(w.loop_id, w.seq, end_ns, result))),
                             rec.group.result)
