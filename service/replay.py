@@ -171,35 +171,36 @@ class PublishBatch:
 _ORDER = ("mode", "sp", "mv", "op", "pv")
 
 
-def republish_plan(windows: Iterable[RecordedWindow]) -> Iterator[PublishBatch]:
+def republish_plan(windows: Iterable[RecordedWindow], *, batch: int = 16) -> Iterator[PublishBatch]:
     """The recorded samples of each loop, each grid point once (windows overlap), in recording
-    order, split into batches of consecutive on-grid samples (off-grid ones alone)."""
+    order, as a plant sends them: slices of ``batch`` grid points, all signals of a slice before
+    the next (OP and PV last; a monitor closes a window once its pacing signals reach the end),
+    consecutive on-grid samples as one batch, off-grid samples one by one."""
     published: dict[str, int] = {}
     for rec in windows:
         w, g = rec.window, rec.group.window
-        first_new = published.get(w.loop_id, -(2**62)) + 1 - w.index0
-        if first_new >= w.t.size:
+        lo = max(0, published.get(w.loop_id, -(2**62)) + 1 - w.index0)
+        if lo >= w.t.size:
             continue
-        lo = max(0, first_new)
         published[w.loop_id] = w.index0 + w.t.size - 1
-        grid_ns = codec.seconds_to_ns(w.t[lo:])
-        for name in sorted(w.signals, key=lambda n: _ORDER.index(n) if n in _ORDER else -1):
-            v = w.signals[name][lo:]
-            ns = g.times_ns[name][lo:]
-            ok = np.isfinite(v)
-            on_grid = ok & (ns == grid_ns)
-            # runs of consecutive on-grid samples -> one batch each; off-grid samples one by one
-            i, n = 0, v.size
-            while i < n:
-                if not ok[i]:
-                    i += 1
-                    continue
-                if on_grid[i]:
-                    j = i
-                    while j + 1 < n and on_grid[j + 1]:
-                        j += 1
-                    yield PublishBatch(w.loop_id, name, ns[i:j + 1], v[i:j + 1], w.sample_time_s, True)
-                    i = j + 1
-                else:
-                    yield PublishBatch(w.loop_id, name, ns[i:i + 1], v[i:i + 1], w.sample_time_s, False)
-                    i += 1
+        grid_ns = codec.seconds_to_ns(w.t)
+        names = sorted(w.signals, key=lambda n: _ORDER.index(n) if n in _ORDER else -1)
+        for c0 in range(lo, w.t.size, batch):
+            c1 = min(w.t.size, c0 + batch)
+            for name in names:
+                v, ns = w.signals[name][c0:c1], g.times_ns[name][c0:c1]
+                ok = np.isfinite(v)
+                on_grid = ok & (ns == grid_ns[c0:c1])
+                i = 0
+                while i < v.size:
+                    if not ok[i]:
+                        i += 1
+                    elif on_grid[i]:
+                        j = i + 1
+                        while j < v.size and on_grid[j]:
+                            j += 1
+                        yield PublishBatch(w.loop_id, name, ns[i:j], v[i:j], w.sample_time_s, True)
+                        i = j
+                    else:
+                        yield PublishBatch(w.loop_id, name, ns[i:i + 1], v[i:i + 1], w.sample_time_s, False)
+                        i += 1
