@@ -218,7 +218,8 @@ class McapRecorder:
     retry_s : after a write error, time before the next attempt to open a new file.
     chunk_size : uncompressed bytes per MCAP chunk.
     clock, wall : monotonic and Unix clocks (injected for tests).
-    recover : recover the instance's leftover ``.part`` files on start.
+    recover : recover the instance's leftover ``.part`` files on start (in the writer thread,
+        before the first window is written).
     """
 
     name = "recording"
@@ -253,12 +254,7 @@ class McapRecorder:
         self.deleted: list[str] = []
         self.recovered: list[RecoveryResult] = []
         self._lock = threading.Lock()
-        if recover:
-            try:
-                self.dir.mkdir(parents=True, exist_ok=True)
-                self.recovered = recover_leftovers(self.dir, instance)
-            except OSError as exc:
-                self._degrade(exc)
+        self._recover = recover
         self._thread = threading.Thread(target=self._run, name="loopwatch-recorder", daemon=True)
         self._thread.start()
 
@@ -294,6 +290,14 @@ class McapRecorder:
 
     # ------------------------------------------------------------------ writer thread
     def _run(self) -> None:
+        if self._recover:   # in the writer thread: a large leftover must not delay the monitor's start
+            try:
+                self.dir.mkdir(parents=True, exist_ok=True)
+                found = recover_leftovers(self.dir, self.instance)
+                with self._lock:
+                    self.recovered += found
+            except OSError as exc:
+                self._degrade(exc)
         while True:
             try:
                 item = self._q.get(timeout=self._wait())
