@@ -25,13 +25,13 @@ import json
 import os
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.bench.bench_monitor import read_phases
 from tests.conftest import loopback_port
 
 PORT = loopback_port(22)
@@ -102,15 +102,7 @@ def _run(n: int, workers: int, record_dir: Path | None, tmp: Path) -> dict:
     cpu0 = _cpu_s(mon.pid)
     pub = subprocess.Popen([sys.executable, "-m", "tests.bench.bench_recording", "--loops", str(n), "--port",
                             str(PORT)], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
-    lines = {}
-
-    def read_pub():
-        for line in pub.stdout:
-            d = json.loads(line)
-            lines[d["phase"]] = d
-
-    th = threading.Thread(target=read_pub, daemon=True)
-    th.start()
+    lines, th = read_phases(pub)
     deadline = time.monotonic() + 3600
     while time.monotonic() < deadline:
         time.sleep(0.5)
