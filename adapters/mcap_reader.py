@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import bisect
 import json
+import logging
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,8 @@ from mcap.reader import make_reader
 
 from . import mcap_codec as codec
 from .errors import AdapterError
+
+log = logging.getLogger("loopwatch.replay")
 
 __all__ = ["RecordedGroup", "RecordingReadError", "recording_files", "read_recording", "count_windows"]
 
@@ -148,8 +151,10 @@ def _read_file(path, reader, summary, want, start_ns, end_ns) -> Iterator[Record
     def flush():
         for (loop, seq), parts in sorted(pending.items(), key=lambda kv: kv[1]["order"]):
             if "window" not in parts or "result" not in parts:
-                raise RecordingReadError(f"{path}: window {seq} of loop {loop} lacks its "
-                                         f"{'window' if 'window' not in parts else 'result'} message")
+                # a recovered file can end between a window's messages (they may straddle chunks)
+                log.warning("%s: window %d of loop %s lacks its %s message; skipped", path, seq, loop,
+                            "window" if "window" not in parts else "result")
+                continue
             times, bodies = configs.get(loop, ([], []))
             i = bisect.bisect_right(times, parts["log_time"]) - 1
             if i < 0:

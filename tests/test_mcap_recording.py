@@ -381,3 +381,26 @@ def test_recording_settings_validated_and_documented():
         load_settings(None, recording={"flush_s": 30, "rotate_s": 10})
     with pytest.raises(SettingsError, match="recording.rotat"):
         load_settings(None, recording={"rotat_bytes": 1})
+
+
+def test_a_window_without_its_result_is_skipped_not_fatal(rec, tmp_path, caplog):
+    """A recovered file can end between a window's messages (they may straddle two chunks)."""
+    from mcap.writer import Writer
+
+    src = _files(rec.dir)[0]
+    summary, msgs = _messages(src)
+    dropped = next((c.topic, m.sequence) for _, c, m in msgs if c.topic.endswith("/result"))
+    out = tmp_path / "holed.mcap"
+    with out.open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        sids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        cids = {cid: w.register_channel(c.topic, c.message_encoding, sids[c.schema_id], c.metadata)
+                for cid, c in summary.channels.items()}
+        for _, c, m in msgs:
+            if (c.topic, m.sequence) != dropped:
+                w.add_message(cids[c.id], m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+    got = list(read_recording([out]))
+    assert len(got) == len(list(read_recording([src]))) - 1
+    assert "lacks its result message" in caplog.text
