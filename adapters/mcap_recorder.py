@@ -347,7 +347,7 @@ class McapRecorder:
             w.add_message(f.channel(loop, "config"), end, codec.dumps(codec.encode_loop_config(loop, window, end)),
                           end)
         seq = int(window.seq)
-        w.add_message(f.channel(loop, "window"), end, codec.dumps(codec.encode_window(window, t_ns)), end, seq)
+        w.add_message(f.channel(loop, "window"), end, codec.encode_window(window, t_ns), end, seq)
         w.add_message(f.channel(loop, "result"), end, codec.dumps(codec.encode_result(loop, seq, end, result)),
                       end, seq)
         if alert is not None:
