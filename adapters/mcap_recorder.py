@@ -250,8 +250,9 @@ class McapRecorder:
         self.windows_recorded = 0
         self.windows_flushed = 0
         self.alerts_recorded = 0
-        self.files_finished: list[str] = []
-        self.deleted: list[str] = []
+        self.files_finished = 0
+        self.last_file: str | None = None
+        self.files_deleted = 0
         self.recovered: list[RecoveryResult] = []
         self._lock = threading.Lock()
         self._recover = recover
@@ -277,8 +278,8 @@ class McapRecorder:
                 "file": str(self._file.part) if self._file else None,
                 "windows_recorded": self.windows_recorded, "windows_flushed": self.windows_flushed,
                 "alerts_recorded": self.alerts_recorded, "windows_dropped": dict(self.dropped),
-                "queued": self._q.qsize(), "files_finished": len(self.files_finished),
-                "files_deleted_by_retention": len(self.deleted),
+                "queued": self._q.qsize(), "files_finished": self.files_finished, "last_file": self.last_file,
+                "files_deleted_by_retention": self.files_deleted,
                 "recovered_on_start": [r.target for r in self.recovered], "last_error": self.last_error,
             }
 
@@ -413,7 +414,8 @@ class McapRecorder:
             raise
         with self._lock:
             self.windows_flushed = self.windows_recorded
-            self.files_finished.append(str(f.path))
+            self.files_finished += 1
+            self.last_file = str(f.path)
         self._dirty = False
         self._retain()
 
@@ -446,7 +448,7 @@ class McapRecorder:
                 continue
             total -= size
             with self._lock:
-                self.deleted.append(str(p))
+                self.files_deleted += 1
             log.info("retention: deleted %s (%d bytes)", p, size)
 
     def _degrade(self, exc: OSError) -> None:
