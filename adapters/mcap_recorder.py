@@ -250,6 +250,7 @@ class McapRecorder:
         self.windows_recorded = 0
         self.windows_flushed = 0
         self.alerts_recorded = 0
+        self.cpu_s = 0.0   # CPU time of the writer thread (encoding, compression, writing)
         self.files_finished = 0
         self.last_file: str | None = None
         self.files_deleted = 0
@@ -278,6 +279,7 @@ class McapRecorder:
                 "file": str(self._file.part) if self._file else None,
                 "windows_recorded": self.windows_recorded, "windows_flushed": self.windows_flushed,
                 "alerts_recorded": self.alerts_recorded, "windows_dropped": dict(self.dropped),
+                "writer_cpu_s": round(self.cpu_s, 3),
                 "queued": self._q.qsize(), "files_finished": self.files_finished, "last_file": self.last_file,
                 "files_deleted_by_retention": self.files_deleted,
                 "recovered_on_start": [r.target for r in self.recovered], "last_error": self.last_error,
@@ -306,6 +308,7 @@ class McapRecorder:
                 item = None
             if item is _STOP:
                 break
+            cpu0 = time.thread_time()
             try:
                 if item is not None:
                     self._write(*item)
@@ -316,6 +319,7 @@ class McapRecorder:
                 with self._lock:
                     self.dropped["encode_error"] += 1
                 log.error("recording a window failed: %r", exc)
+            self.cpu_s += time.thread_time() - cpu0
         try:
             self._rotate()
         except OSError as exc:

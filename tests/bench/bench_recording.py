@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.bench.bench_monitor import read_phases
+from tests.bench.bench_monitor import _tree, read_phases
 from tests.conftest import loopback_port
 
 PORT = loopback_port(22)
@@ -80,6 +80,17 @@ def _cpu_s(pid: int) -> float:
     return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _tree_cpu_s(pid: int) -> float:
+    """CPU seconds of the monitor and its live descendants (forkserver, analysis workers)."""
+    total = 0.0
+    for p in _tree(pid):
+        try:
+            total += _cpu_s(p)
+        except OSError:
+            pass
+    return total
+
+
 def _run(n: int, workers: int, record_dir: Path | None, tmp: Path) -> dict:
     from adapters.zenoh_session import open_session
 
@@ -99,7 +110,7 @@ def _run(n: int, workers: int, record_dir: Path | None, tmp: Path) -> dict:
         return json.loads(r[0].ok.payload.to_bytes())
 
     time.sleep(1.0)
-    cpu0 = _cpu_s(mon.pid)
+    cpu0, tree0 = _cpu_s(mon.pid), _tree_cpu_s(mon.pid)
     pub = subprocess.Popen([sys.executable, "-m", "tests.bench.bench_recording", "--loops", str(n), "--port",
                             str(PORT)], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
     lines, th = read_phases(pub)
@@ -114,7 +125,7 @@ def _run(n: int, workers: int, record_dir: Path | None, tmp: Path) -> dict:
         if done:
             break
     t_end = time.time()
-    cpu = _cpu_s(mon.pid) - cpu0
+    cpu, tree_cpu = _cpu_s(mon.pid) - cpu0, _tree_cpu_s(mon.pid) - tree0
     pub.wait(60)
     th.join(10)
     final = status()
@@ -125,12 +136,14 @@ def _run(n: int, workers: int, record_dir: Path | None, tmp: Path) -> dict:
     out = {"recording": record_dir is not None, "wall_s": wall, "windows": final["runtime"]["windows_analysed"],
            "windows_per_s": final["runtime"]["windows_analysed"] / wall, "ingest_cpu_s": cpu,
            "ingest_cpu_ms_per_window": 1000 * cpu / max(1, final["runtime"]["windows_analysed"]),
+           "total_cpu_ms_per_window": 1000 * tree_cpu / max(1, final["runtime"]["windows_analysed"]),
            "publish_s": lines["done"]["wall"] - lines["start"]["wall"], "sent": lines["done"]["sent"],
            "accepted": final["totals"]["samples_accepted"], "latency_p99": final["runtime"]["latency_s"]["p99"]}
     if record_dir:
         r = final["sinks"]["recording"]
         size = sum(p.stat().st_size for p in record_dir.glob("*.mcap*"))
         out.update(recorded=r["windows_recorded"], dropped=r["windows_dropped"], state=r["state"], bytes=size,
+                   writer_cpu_ms_per_window=1000 * r["writer_cpu_s"] / max(1, r["windows_recorded"]),
                    bytes_per_window=size / max(1, r["windows_recorded"]))
     return out
 
@@ -163,6 +176,10 @@ def test_recording_throughput(tmp_path):
     ratio = med(on, "windows_per_s") / med(off, "windows_per_s")
     print(f"throughput with / without recording: {ratio:.3f} ({(ratio - 1) * 100:+.1f} %); pairs: "
           f"{[round(b['windows_per_s'] / a['windows_per_s'], 3) for a, b in zip(off, on)]}")
+    extra, total = med(on, "writer_cpu_ms_per_window"), med(off, "total_cpu_ms_per_window")
+    print(f"CPU: monitor + workers {total:.1f} ms/window without recording; the recorder's writer thread "
+          f"{extra:.2f} ms/window -> on a CPU-bound machine recording costs {extra / (total + extra) * 100:.1f} % "
+          f"of the throughput (load-independent estimate)")
     print(f"recording: {on[-1]['recorded']} windows recorded, dropped {on[-1]['dropped']}, state {on[-1]['state']}, "
           f"{on[-1]['bytes'] / 2**20:.1f} MiB ({on[-1]['bytes_per_window'] / 1024:.1f} KiB/window)")
     for r in runs:
