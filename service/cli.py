@@ -28,6 +28,9 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("monitor",), "service.commands.monitor", "run the always-on monitor (zenoh in, alerts and status out)"),
     (("simulate", "plant"), "service.commands.simulate_plant", "publish a simulated mixed plant over zenoh"),
     (("identify",), "service.commands.identify", "identify Karnopp valve friction parameters from bench or positioner data"),
+    (("replay",), "service.commands.replay", "re-run the pipeline on recorded windows (MCAP), or re-publish them"),
+    (("recover",), "service.commands.recover", "make a recording cut short by a crash a valid MCAP file"),
+    (("export",), "service.commands.export", "write one loop's recorded samples as the CSV of `analyze`"),
 ]
 
 _USER_ERRORS = (PipelineError, ModelError, AdapterError, ServiceError)

@@ -13,7 +13,7 @@ from .monitor import AnalysisConfig, LoopConfig, Monitor, MonitorCore, make_exec
 from .ports import AlertSink, WindowSink
 from .settings import LoopSettings, MonitorSettings, WindowSettings
 
-__all__ = ["loop_config_factory", "build_core", "RunningMonitor", "start_monitor"]
+__all__ = ["loop_config_factory", "build_core", "build_recorder", "RunningMonitor", "start_monitor"]
 
 log = logging.getLogger("loopwatch.composition")
 
@@ -56,6 +56,26 @@ def build_core(settings: MonitorSettings, clock=time.monotonic) -> MonitorCore:
     )
 
 
+def build_recorder(settings: MonitorSettings):
+    """The MCAP recorder of ``settings.recording`` (a window sink), or ``None`` when disabled.
+    Recovers the instance's leftover ``.part`` files first; never raises for an unwritable
+    directory (the recorder starts degraded and retries)."""
+    rec = settings.recording
+    if not rec.enabled:
+        return None
+    from adapters.mcap_recorder import McapRecorder
+
+    run_config = {"instance": settings.instance,
+                  "alerts": {"raise_after": settings.alerts.raise_after, "clear_after": settings.alerts.clear_after},
+                  "settings": settings.model_dump(mode="json")}
+    recorder = McapRecorder(rec.dir, instance=settings.instance, run_config=run_config,
+                            rotate_bytes=rec.rotate_bytes, rotate_s=rec.rotate_s,
+                            retention_bytes=rec.retention_bytes, retention_s=rec.retention_s,
+                            flush_s=rec.flush_s, queue_max=rec.queue_windows)
+    log.info("recording every analysed window to %s (%s)", rec.dir, recorder.state)
+    return recorder
+
+
 @dataclass
 class RunningMonitor:
     """A started monitor and what it opened; :meth:`close` tears everything down in order."""
@@ -70,7 +90,7 @@ class RunningMonitor:
 
     def close(self) -> None:
         self.source.close()           # stop taking messages
-        self.monitor.close()          # finish queued windows (alerts still go out)
+        self.monitor.close()          # finish queued windows (alerts still go out), close the sinks (recorder)
         self.status.close()           # liveliness DELETE
         self.session.close()
 
@@ -93,8 +113,9 @@ def start_monitor(settings: MonitorSettings, *, alert_sinks: list[AlertSink] = (
     z = settings.zenoh
     session = open_session(z.mode, listen=z.listen, connect=z.connect, gossip=z.gossip)
     alert_sink = ZenohAlertSink(session, settings.keys.alert_prefix, settings.instance)
+    recorder = build_recorder(settings)
     monitor = Monitor(build_core(settings), executor, alert_sinks=[alert_sink, *alert_sinks],
-                      window_sinks=list(window_sinks), instance=settings.instance)
+                      window_sinks=[*([recorder] if recorder else []), *window_sinks], instance=settings.instance)
     status = ZenohStatus(session, settings.instance, monitor.status)
     source = ZenohSampleSource(session, settings.keys.prefix, monitor.on_message)
     log.info("monitor %s: %s on %s%s, samples %s/**, alerts %s/<loop>", settings.instance, z.mode,

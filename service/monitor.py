@@ -35,7 +35,7 @@ from adapters.payloads import SIGNALS, PayloadError, decode_payload, parse_key
 from pipeline.diagnosis import DiagnosisConfig, WindowDiagnosis, diagnose_window
 
 from .errors import ServiceError
-from .ports import AlertSink, Clock, WindowSink
+from .ports import AlertSink, Clock, Closeable, SinkHealth, WindowSink
 
 __all__ = [
     "AnalysisConfig",
@@ -58,6 +58,10 @@ AnalysedSignal = Literal["pv", "op", "error"]
 _INFER_SAMPLES = 8
 #: signals whose progress decides that a window is complete (others only via ``lateness``)
 _PACING_SIGNALS = ("op", "pv")
+#: a sample's own time stamp is kept (as an offset from its grid point) once it is further than
+#: this from the grid point it is placed on; closer stamps are taken as the grid time (float64 Unix
+#: seconds only resolve ~0.24 us today, so this is a few units of their last place)
+RAW_TIME_TOLERANCE_S = 1e-6
 
 
 @dataclass(frozen=True)
@@ -121,6 +125,8 @@ class WindowSamples:
     """One closed window of a loop: grid times and the raw samples of every signal (NaN = missing).
 
     ``seq`` numbers the loop's windows from 0; ``index0`` is the grid index of the first sample.
+    ``t_offset[name]`` (only for signals whose samples were stamped off the grid by more than
+    :data:`RAW_TIME_TOLERANCE_S`) is each sample's own time minus its grid time; see :meth:`sample_times`.
     """
 
     loop_id: str
@@ -130,6 +136,12 @@ class WindowSamples:
     sample_time_s: float
     signals: dict[str, np.ndarray]
     analysis: AnalysisConfig
+    t_offset: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def sample_times(self, name: str) -> np.ndarray:
+        """The data's own time stamps (Unix s) of signal ``name``: grid time plus its offset."""
+        off = self.t_offset.get(name)
+        return self.t if off is None else self.t + off
 
     @property
     def start_t(self) -> float:
@@ -223,6 +235,16 @@ class Alert:
             "evidence": self.evidence,
         }
 
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> "Alert":
+        """Inverse of :meth:`to_json` (``null`` figures back to NaN); extra keys are ignored."""
+        num = lambda v: math.nan if v is None else float(v)  # noqa: E731
+        w = d["window"]
+        return cls(d["loop"], d["state"], d["verdict"], num(d["tdnl"]), tuple(num(v) for v in d["dnl"]),
+                   float(d["threshold"]), num(d["period_s"]), num(d["amplitude"]), d["signal"],
+                   float(w["start_t"]), float(w["end_t"]), int(w["seq"]), int(d["consecutive_windows"]),
+                   d["evidence"])
+
 
 class AlertTracker:
     """Hysteresis of one loop's alert.
@@ -306,6 +328,7 @@ class LoopBuffer:
         self.origin: float | None = None
         self.length = self.hop = self.cap = 0
         self.data: dict[str, np.ndarray] = {}
+        self.offsets: dict[str, np.ndarray] = {}   # allocated per signal on its first off-grid sample
         self.sig_hi: dict[str, int] = {}
         self.hi = -(2**62)
         self.next_start = 0
@@ -351,19 +374,26 @@ class LoopBuffer:
         return self._place(signal, t, v)
 
     def _place(self, signal: str, t: np.ndarray, v: np.ndarray) -> list[WindowSamples]:
-        k = np.rint((np.asarray(t, dtype=np.float64) - self.origin) / self.ts).astype(np.int64)
+        t = np.asarray(t, dtype=np.float64)
+        k = np.rint((t - self.origin) / self.ts).astype(np.int64)
         v = np.asarray(v, dtype=np.float64)
+        off = t - (self.origin + k * self.ts)
+        if signal not in self.offsets and not np.any(np.abs(off) > RAW_TIME_TOLERANCE_S):
+            off = None   # on the grid: the grid time is the sample's time
         if k.size > 1 and np.any(k[1:] <= k[:-1]):
             order = np.argsort(k, kind="stable")
             k, v = k[order], v[order]
+            off = None if off is None else off[order]
             first = np.r_[True, k[1:] != k[:-1]]
             if not first.all():
                 self.rejected["duplicate"] += int(k.size - np.count_nonzero(first))
                 k, v = k[first], v[first]
+                off = None if off is None else off[first]
         late = k < self.next_start
         if late.any():
             self.rejected["late"] += int(np.count_nonzero(late))
             k, v = k[~late], v[~late]
+            off = None if off is None else off[~late]
         out: list[WindowSamples] = []
         i = 0
         while i < k.size:
@@ -376,18 +406,20 @@ class LoopBuffer:
                 else:
                     out.append(self._cut())
             j = int(np.searchsorted(k, self.next_start + self.cap, side="left"))
-            self._write(signal, k[i:j], v[i:j])
+            self._write(signal, k[i:j], v[i:j], None if off is None else off[i:j])
             i = j
             out.extend(self._close_due())
         return out
 
-    def _write(self, signal: str, k: np.ndarray, v: np.ndarray) -> None:
+    def _write(self, signal: str, k: np.ndarray, v: np.ndarray, off: np.ndarray | None = None) -> None:
         cap = self.cap
         top = int(k[-1]) if k.size else self.hi
         if top > self.hi:  # grid points beyond the newest one reuse ring slots: clear them first
             fresh = np.arange(max(self.hi + 1, top - cap + 1), top + 1) % cap
             for arr in self.data.values():
                 arr[fresh] = np.nan
+            for arr in self.offsets.values():
+                arr[fresh] = 0.0
         s = k % cap
         arr = self.data.get(signal)
         if arr is None:
@@ -396,7 +428,13 @@ class LoopBuffer:
         if dup.any():
             self.rejected["duplicate"] += int(np.count_nonzero(dup))
             s, k, v = s[~dup], k[~dup], v[~dup]
+            off = None if off is None else off[~dup]
         arr[s] = v
+        if off is not None:
+            offs = self.offsets.get(signal)
+            if offs is None:
+                offs = self.offsets[signal] = np.zeros(cap)
+            offs[s] = off
         self.accepted[signal] += int(k.size)
         if k.size:
             if top > self.sig_hi.get(signal, -(2**62)):
@@ -434,8 +472,10 @@ class LoopBuffer:
             x = arr[s]
             x[~valid] = np.nan
             signals[name] = x
+        offsets = {name: np.where(np.isfinite(signals[name]), arr[s], 0.0)
+                   for name, arr in self.offsets.items() if name in signals}
         w = WindowSamples(self.loop_id, self.seq, self.next_start, self.origin + idx * self.ts, self.ts,
-                          signals, self.config.analysis)
+                          signals, self.config.analysis, offsets)
         self.seq += 1
         self.next_start += self.hop
         return w
@@ -551,7 +591,9 @@ class MonitorCore:
     def apply(self, window: WindowSamples, result: WindowResult) -> Alert | None:
         """Apply one window's result (in window order per loop); return the alert transition, if any."""
         with self.lock:
-            st = self.loops[window.loop_id]
+            st = self.loops.get(window.loop_id) or self._loop(window.loop_id)
+            if st is None:
+                return None
             d = result.diagnosis
             st.windows += 1
             st.missing_samples += result.n_missing
@@ -738,11 +780,37 @@ class Monitor:
         s["runtime"] = {"windows_analysed": self.windows_done, "windows_queued": self._in_flight,
                         "alerts_published": self.alerts_published, "errors": self.errors,
                         "latency_s": self.latency.summary()}
+        sinks = {}
+        for sink in self._sinks():
+            if isinstance(sink, SinkHealth):
+                try:
+                    sinks[sink.name] = sink.status()
+                except Exception as exc:  # noqa: BLE001 - a sink's status must not break the monitor's
+                    sinks[sink.name] = {"state": "error", "error": repr(exc)}
+        if sinks:
+            s["sinks"] = sinks
         return s
 
+    def _sinks(self) -> list:
+        """Every sink once (a sink may be both a window and an alert sink)."""
+        seen, out = set(), []
+        for sink in (*self.window_sinks, *self.alert_sinks):
+            if id(sink) not in seen:
+                seen.add(id(sink))
+                out.append(sink)
+        return out
+
     def close(self, timeout: float | None = 30.0) -> None:
-        """Finish the queued windows, stop the collector and the executor."""
+        """Finish the queued windows, stop the collector and the executor, then close the sinks
+        that hold resources (:class:`~service.ports.Closeable`), so recorders see every window."""
         self.drain(timeout)
         self._pending.put(None)
         self._collector.join(timeout)
         self.executor.shutdown(wait=True, cancel_futures=True)
+        for sink in self._sinks():
+            if isinstance(sink, Closeable):
+                try:
+                    sink.close()
+                except Exception as exc:  # noqa: BLE001
+                    self.errors += 1
+                    log.error("closing sink %r failed: %r", sink, exc)

@@ -2,7 +2,13 @@
 
 The monitor core (:mod:`service.monitor`) only knows these Protocols; the composition root
 (:mod:`service.composition`) wires the real zenoh adapters, tests wire in-memory fakes.
-Later recorders (MCAP, rerun) are further :class:`WindowSink` / :class:`AlertSink` implementations.
+Recorders (MCAP, rerun) are further :class:`WindowSink` / :class:`AlertSink` implementations.
+
+Sink lifecycle and health: a sink may also implement :class:`Closeable` (the monitor calls
+``close()`` once, after the last window) and :class:`SinkHealth` (``status()`` is shown under
+``status["sinks"][name]``).  A sink must never stop the monitor: the monitor catches and counts
+exceptions of ``on_window`` / ``publish``, but a sink that can fail for a long time (a recorder
+on a full disk) should degrade instead -- drop and count, report it in ``status()``, retry later.
 """
 
 from __future__ import annotations
@@ -12,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 if TYPE_CHECKING:
     from .monitor import Alert, WindowResult, WindowSamples
 
-__all__ = ["AlertSink", "WindowSink", "MessageHandler", "StatusProvider", "Clock"]
+__all__ = ["AlertSink", "WindowSink", "Closeable", "SinkHealth", "MessageHandler", "StatusProvider", "Clock"]
 
 
 @runtime_checkable
@@ -32,6 +38,23 @@ class WindowSink(Protocol):
 
     def on_window(self, loop_id: str, window: "WindowSamples", result: "WindowResult",
                   alert: "Alert | None") -> None: ...
+
+
+@runtime_checkable
+class Closeable(Protocol):
+    """A sink holding resources (files, threads): ``close()`` flushes and releases them; called once."""
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class SinkHealth(Protocol):
+    """A sink that reports its health: ``name`` (key under ``status["sinks"]``) and a JSON-ready
+    ``status()`` dict (e.g. ``{"state": "ok" | "degraded", ...}``)."""
+
+    name: str
+
+    def status(self) -> dict[str, Any]: ...
 
 
 class MessageHandler(Protocol):

@@ -30,6 +30,7 @@ __all__ = [
     "AnalysisSettings",
     "IngestSettings",
     "LoopSettings",
+    "RecordingSettings",
     "MonitorSettings",
     "load_settings",
 ]
@@ -146,6 +147,38 @@ class IngestSettings(_Strict):
         return self
 
 
+class RecordingSettings(_Strict):
+    """MCAP recording of every analysed window (``loopwatch replay`` reads it back).
+
+    Files go to ``dir`` as ``{instance}-{UTC start}-{n}.mcap`` (``.part`` while written); they
+    roll over at ``rotate_bytes`` or ``rotate_s``; the oldest are deleted beyond
+    ``retention_bytes`` / ``retention_s`` (unset: kept forever).  ``flush_s`` bounds what a crash
+    can lose.  ``queue_windows`` windows may wait for the writer; beyond, windows are dropped
+    (counted in the status) rather than slowing the monitor down.
+    """
+
+    enabled: bool = False
+    dir: Path = Path("recordings")
+    rotate_bytes: Annotated[int, Field(ge=1 << 20)] = 256 << 20
+    rotate_s: Annotated[float, Field(gt=0)] = 3600.0
+    retention_bytes: Annotated[int, Field(gt=0)] | None = None
+    retention_s: Annotated[float, Field(gt=0)] | None = None
+    flush_s: Annotated[float, Field(gt=0, le=60)] = 2.0
+    queue_windows: Annotated[int, Field(ge=1)] = 1000
+
+    @model_validator(mode="after")
+    def _limits(self) -> "RecordingSettings":
+        if self.flush_s > self.rotate_s:
+            raise ValueError(f"flush_s ({self.flush_s}) must be <= rotate_s ({self.rotate_s})")
+        if self.retention_bytes is not None and self.retention_bytes < self.rotate_bytes:
+            raise ValueError(f"retention_bytes ({self.retention_bytes}) must be >= rotate_bytes "
+                             f"({self.rotate_bytes}), or every finished file would be deleted at once")
+        if self.retention_s is not None and self.retention_s < self.rotate_s:
+            raise ValueError(f"retention_s ({self.retention_s}) must be >= rotate_s ({self.rotate_s}), "
+                             "or files would be deleted as soon as they are finished")
+        return self
+
+
 class LoopSettings(_Strict):
     """Per-loop overrides (``[loops."area1/FIC101"]``); unset fields use the global ones."""
 
@@ -168,6 +201,7 @@ class MonitorSettings(BaseSettings):
     alerts: AlertSettings = AlertSettings()
     analysis: AnalysisSettings = AnalysisSettings()
     ingest: IngestSettings = IngestSettings()
+    recording: RecordingSettings = RecordingSettings()
     loops: dict[str, LoopSettings] = {}
 
     @field_validator("instance")

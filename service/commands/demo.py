@@ -13,6 +13,7 @@ import argparse
 import json
 import threading
 import time
+from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
@@ -25,6 +26,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", dest="fmt", choices=["single", "json", "binary"], default="binary")
     p.add_argument("--port", type=int, default=7447, help="the monitor's loopback port (default 7447)")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--record", type=Path, default=Path("out/demo-mcap"), metavar="DIR",
+                   help="MCAP recording of every analysed window (default out/demo-mcap; see `loopwatch replay`)")
+    p.add_argument("--no-record", dest="record", action="store_const", const=None, help="do not record")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,7 +43,9 @@ def run(args: argparse.Namespace) -> int:
     console = Console(width=150)
     endpoint = f"tcp/127.0.0.1:{args.port}"
     settings = load_settings(None, instance="demo", sample_time_s=1.0,
-                             zenoh={"mode": "peer", "listen": [endpoint]}, analysis={"workers": 1})
+                             zenoh={"mode": "peer", "listen": [endpoint]}, analysis={"workers": 1},
+                             recording={"enabled": args.record is not None, "dir": args.record or "recordings",
+                                        "rotate_s": 600.0, "flush_s": 1.0})
     loops = make_plant(args.loops, duration_s=args.duration, seed=args.seed)
     truth = Table(title="simulated plant (truth)")
     for c in ("loop", "case", "truth", "expected alert"):
@@ -77,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
         sub.undeclare()
         running.close()
         plant.close()
+    recording = running.monitor.status(loop="").get("sinks", {}).get("recording")
 
     table = Table(title=f"loopwatch demo: truth vs. alert state ({time.monotonic() - t:.0f} s)")
     for c in ("loop", "case", "truth", "expected", "alert (bus)", "status state", "last verdict", "TDNL",
@@ -100,4 +107,13 @@ def run(args: argparse.Namespace) -> int:
     console.print(f"published {pub.sent_samples} samples; monitor accepted {tot.get('samples_accepted')}, "
                   f"rejected {tot.get('rejected')}; liveliness: {alive}; "
                   f"{len(loops) - mismatches} of {len(loops)} loops match the truth")
+    if recording:
+        first = loops[0].loop_id
+        console.print(f"recorded {recording['windows_recorded']} windows ({recording['alerts_recorded']} alerts, "
+                      f"recording {recording['state']}) to {args.record}/; replay them with\n"
+                      f"  loopwatch replay {args.record}            # re-run the pipeline, compare verdicts\n"
+                      f"  loopwatch replay {args.record} --loop {first} --all\n"
+                      f"  loopwatch export {args.record} --loop {first} --csv out/{first.replace('/', '_')}.csv\n"
+                      f"  loopwatch replay {args.record} --publish --speed 60 --connect tcp/127.0.0.1:7447   "
+                      "# to a running monitor")
     return 0 if mismatches == 0 else 1

@@ -158,6 +158,20 @@ def _rss_tree(pid: int) -> tuple[int, int]:
     return rss, pss
 
 
+def read_phases(proc: subprocess.Popen) -> tuple[dict, threading.Thread]:
+    """Collect a publisher process's JSON lines by ``phase`` (in a thread); returns (dict, thread)."""
+    lines: dict = {}
+
+    def read():
+        for line in proc.stdout:
+            d = json.loads(line)
+            lines[d["phase"]] = d
+
+    th = threading.Thread(target=read, daemon=True)
+    th.start()
+    return lines, th
+
+
 _SECONDS = float(os.environ.get("LOOPWATCH_BENCH_SECONDS", 120))
 
 
@@ -197,15 +211,7 @@ def test_monitor_throughput(tmp_path):
     pub = subprocess.Popen([sys.executable, "-m", "tests.bench.bench_monitor", "--loops", str(n), "--seconds",
                             str(seconds), "--batch", str(batch), "--port", str(PORT)],
                            cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
-    lines = {}
-
-    def read_pub():
-        for line in pub.stdout:
-            d = json.loads(line)
-            lines[d["phase"]] = d
-
-    reader = threading.Thread(target=read_pub, daemon=True)
-    reader.start()
+    lines, reader = read_phases(pub)
     samples = []   # (t since realtime start, windows analysed, queued, rss)
     while "done" not in lines and pub.poll() is None:
         time.sleep(5.0)
