@@ -21,7 +21,7 @@ follows Table 1: ``TDNL > threshold`` (0.1) → non-linear cause, else linear ca
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -87,6 +87,18 @@ class DiagnosisConfig:
             raise PipelineConfigError(f"max_missing_fraction={self.max_missing_fraction!r} must be in [0, 1)")
         if self.max_gap_samples < 0:
             raise PipelineConfigError(f"max_gap_samples={self.max_gap_samples!r} must be >= 0")
+
+    @property
+    def decision_threshold(self) -> float:
+        """The figure a window's ``tdnl`` must exceed to read non-linear: the TDNL threshold
+        (paper method, Table 1) or the least mean-wave DNL of the robust method."""
+        return self.robust.min_dnl if self.method == "robust" else self.threshold
+
+    def with_decision_threshold(self, value: float) -> "DiagnosisConfig":
+        """A copy whose :attr:`decision_threshold` is ``value`` (for the method in use)."""
+        if self.method == "robust":
+            return replace(self, robust=replace(self.robust, min_dnl=value))
+        return replace(self, threshold=value)
 
 
 @dataclass(frozen=True)

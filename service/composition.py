@@ -18,6 +18,12 @@ __all__ = ["loop_config_factory", "build_core", "build_recorder", "RunningMonito
 log = logging.getLogger("loopwatch.composition")
 
 
+def _diagnosis_config(settings: MonitorSettings) -> DiagnosisConfig:
+    config = DiagnosisConfig(method=settings.analysis.method)
+    t = settings.analysis.threshold
+    return config if t is None else config.with_decision_threshold(t)
+
+
 def _loop_config(settings: MonitorSettings, over: LoopSettings | None) -> LoopConfig:
     win: WindowSettings = (over.window if over and over.window else settings.window)
     signal = (over.signal if over and over.signal else settings.analysis.signal)
@@ -31,7 +37,7 @@ def _loop_config(settings: MonitorSettings, over: LoopSettings | None) -> LoopCo
         hop_s = None if hop is not None else length_s / 4
     return LoopConfig(
         sample_time_s=ts, length=length, hop=hop, length_s=length_s, hop_s=hop_s, lateness=win.lateness,
-        analysis=AnalysisConfig(signal=signal, diagnosis=DiagnosisConfig(threshold=settings.analysis.threshold)),
+        analysis=AnalysisConfig(signal=signal, diagnosis=_diagnosis_config(settings)),
     )
 
 

@@ -182,8 +182,14 @@ def analyze_window(window: WindowSamples) -> WindowResult:
     """
     x = window.series()
     n_missing = int(np.count_nonzero(~np.isfinite(x)))
+    sig, signals = window.analysis.signal, window.signals
+    extra = {}
+    if sig in ("pv", "error") and "op" in signals:   # second witness, saturation guard
+        extra["op"] = signals["op"]
+    if sig == "pv" and np.isfinite(signals.get("sp", ())).any():   # a set-point change -> the control error
+        extra["sp"] = _hold(signals["sp"])
     diag = diagnose_window(x, fs=1.0 / window.sample_time_s, config=window.analysis.diagnosis,
-                           mode=window.signals.get("mode"))
+                           mode=signals.get("mode"), **extra)
     ok = np.isfinite(x)
     amplitude = math.nan
     if np.count_nonzero(ok) >= 8:
@@ -194,6 +200,15 @@ def analyze_window(window: WindowSamples) -> WindowResult:
         amplitude = float((hi - lo) / 2.0)
     period = diag.gate.period_s if diag.gate is not None else math.nan
     return WindowResult(diag, amplitude, float(period), n_missing)
+
+
+def _hold(v: np.ndarray) -> np.ndarray:
+    """A signal often sent on change only (the set point) held between its samples: each NaN takes
+    the last value before it, leading NaNs the first value of the window."""
+    ok = np.isfinite(v)
+    idx = np.maximum.accumulate(np.where(ok, np.arange(v.size), -1))
+    idx[idx < 0] = int(np.argmax(ok))
+    return v[idx]
 
 
 def _finite_or_none(v: float) -> float | None:
@@ -603,7 +618,7 @@ class MonitorCore:
             change = st.tracker.update(d.verdict, d.tdnl)
             if change is None:
                 return None
-            thr = window.analysis.diagnosis.threshold
+            thr = window.analysis.diagnosis.decision_threshold
             if change == "raised":
                 recent = list(st.tracker.recent_tdnl)
                 evidence = (f"{st.tracker.nonlinear_streak} consecutive non-linear windows "

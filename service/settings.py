@@ -123,12 +123,15 @@ class AlertSettings(_Strict):
 class AnalysisSettings(_Strict):
     """What is analysed and by how many worker processes.
 
-    ``signal``: ``pv``, ``op`` or ``error`` (``sp - pv``).  ``workers = 0`` analyses in a thread
+    ``signal``: ``pv``, ``op`` or ``error`` (``sp - pv``).  ``method``: ``robust`` (default) or
+    ``paper``; ``threshold``: the figure a window must exceed to read non-linear (the robust
+    method's least mean-wave DNL, or the paper's TDNL); unset, each method's own default.  ``workers = 0`` analyses in a thread
     of the monitor process (tests, tiny plants); ``>= 1`` uses that many worker processes.
     """
 
     signal: Literal["pv", "op", "error"] = "pv"
-    threshold: Annotated[float, Field(gt=0)] = 0.1
+    method: Literal["robust", "paper"] = "robust"
+    threshold: Annotated[float, Field(gt=0)] | None = None
     workers: Annotated[int, Field(ge=0, le=64)] = 1
 
 

@@ -375,3 +375,29 @@ def test_status_selects_all_one_or_no_loop():
     assert list(c.status("B")["loops"]) == ["B"]
     assert c.status("")["loops"] == {} and c.status("nope")["loops"] == {}
     assert c.status("")["totals"]["samples_accepted"] == 40
+
+
+def test_hold_carries_a_sent_on_change_signal_between_its_samples():
+    from service.monitor import _hold
+
+    v = np.array([np.nan, np.nan, 2.0, np.nan, 3.0, np.nan])
+    assert _hold(v).tolist() == [2.0, 2.0, 2.0, 2.0, 3.0, 3.0]
+
+
+def test_set_point_sent_on_change_makes_the_window_analyse_the_control_error():
+    """SP published only when it changes (two samples in the window): the monitor holds it, sees the
+    step inside the window and the diagnosis analyses sp - pv (said in the reason)."""
+    from service.monitor import AnalysisConfig, WindowSamples, analyze_window
+
+    n = 1024
+    t = T0 + np.arange(n, dtype=float)
+    sp = np.full(n, np.nan)
+    sp[3], sp[600] = 50.0, 55.0                       # sent on change only
+    held = np.where(np.arange(n) < 600, 50.0, 55.0)
+    pv = held + 2.0 * np.sin(2 * np.pi * np.arange(n) / 64.0)
+    op = 40.0 + 3.0 * np.cos(2 * np.pi * np.arange(n) / 64.0)
+    w = WindowSamples("L", 0, 0, t, 1.0, {"pv": pv, "op": op, "sp": sp}, AnalysisConfig())
+    reason = analyze_window(w).diagnosis.reason
+    assert "analysing the control error" in reason, reason
+    w2 = WindowSamples("L", 0, 0, t, 1.0, {"pv": pv, "op": op}, AnalysisConfig())
+    assert "control error" not in analyze_window(w2).diagnosis.reason

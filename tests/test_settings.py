@@ -101,3 +101,18 @@ def test_invalid_combinations(tmp_path, text, fragment):
 def test_missing_file():
     with pytest.raises(SettingsError, match="not found"):
         load_settings("/nonexistent/monitor.toml")
+
+
+def test_analysis_threshold_goes_to_the_method_in_use():
+    from pipeline.diagnosis import DiagnosisConfig
+    from service.composition import loop_config_factory
+
+    def diag(**analysis):
+        return loop_config_factory(load_settings(None, analysis=analysis))("L1").analysis.diagnosis
+
+    default = DiagnosisConfig()
+    assert diag() == default                                    # unset: each method's own default
+    robust = diag(threshold=0.2)
+    assert robust.method == "robust" and robust.robust.min_dnl == 0.2 and robust.decision_threshold == 0.2
+    paper = diag(method="paper", threshold=0.3)
+    assert paper.method == "paper" and paper.threshold == 0.3 and paper.robust == default.robust

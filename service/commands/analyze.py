@@ -11,7 +11,6 @@ from rich.table import Table
 
 from adapters.loop_csv import read_loop_csv
 from pipeline.diagnosis import DiagnosisConfig
-from pipeline.robust import RobustConfig
 
 from ..analysis import LoopReport, analyze_loop
 from ..errors import UsageError
@@ -40,11 +39,9 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--{name} {v}: must be at least 1 sample")
     if args.threshold is not None and not args.threshold > 0:
         raise UsageError(f"--threshold {args.threshold}: must be > 0")
-    if args.threshold is None:
-        config = DiagnosisConfig(method=args.method)
-    else:
-        config = DiagnosisConfig(method=args.method, threshold=args.threshold,
-                                 robust=RobustConfig(min_dnl=args.threshold))
+    config = DiagnosisConfig(method=args.method)
+    if args.threshold is not None:
+        config = config.with_decision_threshold(args.threshold)
     data = read_loop_csv(args.file)
     report = analyze_loop(data, signal=args.signal, window=args.window, hop=args.hop, config=config)
     print_report(report)
