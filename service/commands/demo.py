@@ -25,6 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", dest="fmt", choices=["single", "json", "binary"], default="binary")
     p.add_argument("--port", type=int, default=7447, help="the monitor's loopback port (default 7447)")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--rerun", default="save:out/demo.rrd", metavar="SPEC",  # issue 6
+                   help="rerun dashboard: save:PATH.rrd (default save:out/demo.rrd), serve[:[HOST:]PORT[:WEB_PORT]], "
+                        "connect:ADDR, or off")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     from adapters.zenoh_session import open_session
 
-    from ..composition import start_monitor
+    from ..composition import open_dashboard, start_monitor
     from ..settings import load_settings
     from .simulate_plant import PlantPublisher, expects_alert, make_plant
 
@@ -48,7 +51,9 @@ def run(args: argparse.Namespace) -> int:
         truth.add_row(lp.loop_id, lp.case, lp.truth, "yes" if expects_alert(lp.truth) else "no")
     console.print(truth)
 
-    running = start_monitor(settings)
+    dashboard = open_dashboard(settings, None if args.rerun == "off" else args.rerun,  # issue 6
+                               announce=lambda m: console.print(m, markup=False, highlight=False))
+    running = start_monitor(settings, window_sinks=[dashboard] if dashboard else [])
     plant = open_session("peer", connect=[endpoint])
     alerts: dict[str, list[dict]] = {}
     lock = threading.Lock()
@@ -77,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
         sub.undeclare()
         running.close()
         plant.close()
+        if dashboard is not None:
+            dashboard.close()
 
     table = Table(title=f"loopwatch demo: truth vs. alert state ({time.monotonic() - t:.0f} s)")
     for c in ("loop", "case", "truth", "expected", "alert (bus)", "status state", "last verdict", "TDNL",
@@ -100,4 +107,11 @@ def run(args: argparse.Namespace) -> int:
     console.print(f"published {pub.sent_samples} samples; monitor accepted {tot.get('samples_accepted')}, "
                   f"rejected {tot.get('rejected')}; liveliness: {alive}; "
                   f"{len(loops) - mismatches} of {len(loops)} loops match the truth")
+    if args.rerun.startswith("save:"):  # issue 6
+        path = args.rerun[len("save:"):]
+        from adapters.rerun_dashboard import web_viewer_url
+
+        console.print(f"rerun recording of the demo: {path}\n  open it: .venv/bin/rerun {path}\n  or in a browser: "
+                      f".venv/bin/rerun --serve-web --bind 127.0.0.1 {path}  then "
+                      f"{web_viewer_url(9090, 'rerun+http://127.0.0.1:9876/proxy')}", markup=False, highlight=False)
     return 0 if mismatches == 0 else 1
