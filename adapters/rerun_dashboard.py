@@ -190,9 +190,11 @@ def dashboard_blueprint(loop_id: str | None, *, window_s: float | None = None):
     """
     import rerun.blueprint as rrb
 
+    whole = rrb.TimeAxis(view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(),
+                                                  end=rrb.TimeRangeBoundary.cursor_relative()))
     overview = rrb.Vertical(
         rrb.TextDocumentView(origin="/plant/overview", name="plant overview (most severe first)"),
-        rrb.TimeSeriesView(origin="/plant/loops_in_alert", name="loops in alert"),
+        rrb.TimeSeriesView(origin="/plant/loops_in_alert", name="loops in alert", axis_x=whole),
         rrb.TextLogView(origin="/plant/alerts", name="alerts"),
         row_shares=[5, 1, 2],
     )
@@ -200,20 +202,22 @@ def dashboard_blueprint(loop_id: str | None, *, window_s: float | None = None):
     if loop_id is None:
         return rrb.Blueprint(overview, time_panel, collapse_panels=True)
     base = f"/loops/{loop_id}"
-    ranges = None
-    if window_s:
+    ranges, recent = None, whole
+    if window_s:  # query two windows, show the last one, before the time cursor
         ranges = rrb.VisibleTimeRange(TIMELINE, start=rrb.TimeRangeBoundary.cursor_relative(seconds=-2.0 * window_s),
                                       end=rrb.TimeRangeBoundary.cursor_relative())
+        recent = rrb.TimeAxis(view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.cursor_relative(seconds=-window_s),
+                                                       end=rrb.TimeRangeBoundary.cursor_relative()))
     drill = rrb.Vertical(
-        rrb.TimeSeriesView(origin=f"{base}/signals", name=f"{loop_id}: OP, PV, SP", time_ranges=ranges),
+        rrb.TimeSeriesView(origin=f"{base}/signals", name=f"{loop_id}: OP, PV, SP", time_ranges=ranges, axis_x=recent),
         rrb.Horizontal(
-            rrb.TimeSeriesView(origin=f"{base}/dnl", name=f"{loop_id}: TDNL vs threshold"),
+            rrb.TimeSeriesView(origin=f"{base}/dnl", name=f"{loop_id}: TDNL vs threshold", axis_x=whole),
             rrb.Spatial2DView(origin=f"{base}/phase", name=f"{loop_id}: phase plot, OP (x) vs PV (y), normalised"),
             column_shares=[3, 2],
         ),
         rrb.TimeSeriesView(origin=f"{base}/imfs", name=f"{loop_id}: IMFs kept / band component",
-                           time_ranges=ranges),
-        rrb.TimeSeriesView(origin=f"{base}/if", name=f"{loop_id}: IF vs IF_z (Hz)", time_ranges=ranges),
+                           time_ranges=ranges, axis_x=recent),
+        rrb.TimeSeriesView(origin=f"{base}/if", name=f"{loop_id}: IF vs IF_z (Hz)", time_ranges=ranges, axis_x=recent),
         rrb.TextLogView(origin=f"{base}/alerts", name=f"{loop_id}: alerts"),
         row_shares=[3, 3, 2, 2, 1],
     )
