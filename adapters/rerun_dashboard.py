@@ -21,8 +21,9 @@ What is drawn (entity paths; one timeline ``time`` = the data's time stamps):
 Throttling (what is drawn, never what is analysed): every window updates the overview state and
 logs its DNL row (cheap).  Signals and the phase plot are drawn for at most ``draw_per_s``
 windows per wall second (token bucket), EMD is re-run for at most ``explain_per_s`` windows per
-wall second; windows that change a loop's alert state and windows of ``focus`` loops are always
-drawn and explained.  All of it runs on the caller's thread (the monitor's result collector).
+wall second (half of that budget is kept for windows that change a loop's alert state); windows
+that change a loop's alert state are always drawn, windows of ``focus`` loops always drawn and
+explained.  All of it runs on the caller's thread (the monitor's result collector).
 
 :func:`open_rerun_sink` turns a spec into a sink: ``save:PATH.rrd``, ``serve[:[HOST:]PORT[:WEB_PORT]]``
 (gRPC server and web viewer bound to 127.0.0.1 unless a host is given), ``connect:ADDR``.
@@ -169,11 +170,12 @@ class TokenBucket:
         self.tokens = float(burst)
         self.last = clock()
 
-    def take(self) -> bool:
+    def take(self, reserve: float = 0.0) -> bool:
+        """Take a token if one is left above ``reserve`` (tokens kept for more important takers)."""
         now = self.clock()
         self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
         self.last = now
-        if self.tokens >= 1.0:
+        if self.tokens >= 1.0 + reserve:
             self.tokens -= 1.0
             return True
         return False
@@ -343,8 +345,12 @@ class RerunDashboard:
                 self._log_alert(alert)
             if self.drill_loop is None or (alert is not None and alert.state == "raised" and not self._drill_fixed):
                 self._set_drill(self.focus[0] if self.focus else loop_id, fixed=alert is not None)
-            priority = alert is not None or loop_id in self.focus
-            explain = d.verdict in _EXPLAINABLE and (priority or self.explain_bucket.take())
+            focus = loop_id in self.focus
+            priority = alert is not None or focus
+            # EMD is the expensive part: only focus loops bypass its budget; an alert's window may use
+            # the whole budget, other windows only what is above half of it
+            explain = d.verdict in _EXPLAINABLE and (
+                focus or self.explain_bucket.take(reserve=0.0 if alert is not None else self.explain_bucket.burst / 2))
             if explain or priority or self.draw_bucket.take():
                 self._draw(loop_id, st, window)
                 if explain:
@@ -397,14 +403,16 @@ class RerunDashboard:
                                     make_default=True)
 
     def _style(self, loop_id: str, st: _LoopView) -> None:
+        """Names and colours of a loop's series (static); the archetypes are built once."""
         import rerun as rr
 
+        if not hasattr(self, "_styles"):
+            self._styles = [(f"signals/{sig}", rr.SeriesLines(colors=[COLORS[sig]], names=sig.upper())) for sig in _SIGNALS]
+            self._styles += [(f"dnl/{name}", rr.SeriesLines(colors=[COLORS[name]], names=label))
+                             for name, label in (("tdnl", "TDNL"), ("threshold", "threshold"), ("linear_95", "linear 95 %"))]
         st.styled = True
-        base = f"loops/{loop_id}"
-        for sig in _SIGNALS:
-            self.rec.log(f"{base}/signals/{sig}", rr.SeriesLines(colors=[COLORS[sig]], names=sig.upper()), static=True)
-        for name, label in (("tdnl", "TDNL"), ("threshold", "threshold"), ("linear_95", "linear 95 %")):
-            self.rec.log(f"{base}/dnl/{name}", rr.SeriesLines(colors=[COLORS[name]], names=label), static=True)
+        for sub, style in self._styles:
+            self.rec.log(f"loops/{loop_id}/{sub}", style, static=True)
 
     def _draw(self, loop_id: str, st: _LoopView, window: "WindowSamples") -> None:
         import rerun as rr
