@@ -8,8 +8,9 @@ What is drawn (entity paths; one timeline ``time`` = the data's time stamps):
   ``plant/alerts`` -- every alert as a text log; ``plant/loops_in_alert`` -- a count over time.
 * ``loops/{id}/signals/{op,pv,sp}`` -- the samples of the drawn windows, one ``send_columns``
   call per signal and window (only the part after what was drawn before: windows overlap);
-* ``loops/{id}/dnl/{tdnl,threshold,linear_95}`` -- every window's TDNL, the verdict threshold
-  and, for the robust method, the surrogates' 95th percentile (the DNL a linear loop would show);
+* ``loops/{id}/dnl`` -- every window's TDNL, the verdict threshold and, for the robust method,
+  the surrogates' 95th percentile (the DNL a linear loop would show): three series in one row,
+  NaN where a window has no value (not oscillating);
 * ``loops/{id}/phase`` -- OP (x) against PV (y) over the drawn window: the classic stiction
   picture (a parallelogram or ellipse with flat edges for a sticking valve, a tilted ellipse for a
   linear loop);
@@ -79,6 +80,8 @@ COLORS = {"pv": (31, 119, 180), "op": (255, 127, 14), "sp": (44, 160, 44), "tdnl
           "threshold": (127, 127, 127), "linear_95": (148, 103, 189), "if": (31, 119, 180),
           "if_z": (214, 39, 40), "phase": (31, 119, 180)}
 _SIGNALS = ("op", "pv", "sp")
+#: the three series of ``loops/{id}/dnl``, in column order (NaN where a window has none)
+DNL_SERIES = ("tdnl", "threshold", "linear_95")
 _SEVERITY = {"nonlinear": 4, "uncertain": 3, "linear": 2, "invalid": 1, "not_oscillating": 0}
 _EXPLAINABLE = ("nonlinear", "uncertain", "linear")
 
@@ -331,16 +334,11 @@ class RerunDashboard:
             self._dirty = True
             if self._window_s is None:
                 self._window_s = window.t.size * window.sample_time_s
-            base = f"loops/{loop_id}"
-            t_end = np.array([window.end_t])
-            if math.isfinite(d.tdnl):
-                self.rec.send_columns(f"{base}/dnl/tdnl", indexes=_ts(t_end),
-                                      columns=rr.Scalars.columns(scalars=[d.tdnl]))
+            # one row of three series per window (one chunk: single-row chunks cost ~2.5 kB each in a file)
             thr = window.analysis.diagnosis.threshold
-            if d.robust is not None and math.isfinite(d.robust.threshold):
-                self.rec.send_columns(f"{base}/dnl/linear_95", indexes=_ts(t_end),
-                                      columns=rr.Scalars.columns(scalars=[d.robust.threshold]))
-            self.rec.send_columns(f"{base}/dnl/threshold", indexes=_ts(t_end), columns=rr.Scalars.columns(scalars=[thr]))
+            lin95 = d.robust.threshold if d.robust is not None else math.nan
+            self.rec.send_columns(f"loops/{loop_id}/dnl", indexes=_ts([window.end_t]),
+                                  columns=rr.Scalars.columns(scalars=np.array([[d.tdnl, thr, lin95]])))
             if alert is not None:
                 self._log_alert(alert)
             if self.drill_loop is None or (alert is not None and alert.state == "raised" and not self._drill_fixed):
@@ -408,8 +406,8 @@ class RerunDashboard:
 
         if not hasattr(self, "_styles"):
             self._styles = [(f"signals/{sig}", rr.SeriesLines(colors=[COLORS[sig]], names=sig.upper())) for sig in _SIGNALS]
-            self._styles += [(f"dnl/{name}", rr.SeriesLines(colors=[COLORS[name]], names=label))
-                             for name, label in (("tdnl", "TDNL"), ("threshold", "threshold"), ("linear_95", "linear 95 %"))]
+            self._styles.append(("dnl", rr.SeriesLines(colors=[COLORS[k] for k in DNL_SERIES],
+                                                        names=["TDNL", "threshold", "linear 95 %"])))
         st.styled = True
         for sub, style in self._styles:
             self.rec.log(f"loops/{loop_id}/{sub}", style, static=True)

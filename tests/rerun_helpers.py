@@ -76,9 +76,9 @@ def read_rrd(path) -> dict[str, Entity]:
     return dict(out)
 
 
-def scalars(e: Entity) -> tuple[np.ndarray, np.ndarray]:
-    """(times, values) of a scalar entity, sorted by time."""
+def scalars(e: Entity, column: int | None = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(times, values) of a scalar entity, sorted by time; ``column=None``: every series."""
     t = np.asarray(e.times)
-    v = np.array([row[0] for row in e.values], dtype=float)
+    v = np.array([row if column is None else row[column] for row in e.values], dtype=float)
     order = np.argsort(t, kind="stable")
     return t[order], v[order]

@@ -56,9 +56,9 @@ def test_entities_of_plant_and_loops(plant, recorded):
         base = f"/loops/{lp.loop_id}"
         for sig in ("op", "pv", "sp"):
             assert f"{base}/signals/{sig}" in ents
-        assert f"{base}/dnl/threshold" in ents and f"{base}/phase" in ents
+        assert f"{base}/dnl" in ents and f"{base}/phase" in ents
     stiction = f"/loops/{plant[0].loop_id}"
-    for p in ("imfs/band", "if/band/if", "if/band/if_z", "dnl/tdnl", "dnl/linear_95", "alerts"):
+    for p in ("imfs/band", "if/band/if", "if/band/if_z", "alerts"):
         assert f"{stiction}/{p}" in ents, p
     assert not any(p.startswith(f"/loops/{plant[2].loop_id}/imfs") for p in ents), "healthy loop: nothing to explain"
 
@@ -73,18 +73,18 @@ def test_signals_round_trip_over_the_windows_time_range(plant, recorded):
 
 
 def test_every_window_logs_dnl_and_threshold(plant, recorded):
+    """One row per window: TDNL (NaN when not oscillating), threshold 0.1, surrogate 95 %."""
     _, fed, ents, status = recorded
     assert status["windows"] == 3 * N_WIN
     for lp in plant:
-        t, v = scalars(ents[f"/loops/{lp.loop_id}/dnl/threshold"])
+        t, v = scalars(ents[f"/loops/{lp.loop_id}/dnl"], column=None)
         np.testing.assert_array_equal(t, T0 + W - 1 + HOP * np.arange(N_WIN))
-        assert np.all(v == 0.1)
-        mine = [(w.end_t, r.diagnosis.tdnl) for w, r, _ in fed.windows if w.loop_id == lp.loop_id]
-        expect = [(te, d) for te, d in mine if math.isfinite(d)]
-        if expect:
-            t, v = scalars(ents[f"/loops/{lp.loop_id}/dnl/tdnl"])
-            np.testing.assert_array_equal(t, [te for te, _ in expect])
-            np.testing.assert_allclose(v, [d for _, d in expect])
+        assert np.all(v[:, 1] == 0.1)
+        mine = [r.diagnosis for w, r, _ in fed.windows if w.loop_id == lp.loop_id]
+        np.testing.assert_allclose(v[:, 0], [d.tdnl for d in mine], equal_nan=True)
+        np.testing.assert_allclose(v[:, 2], [d.robust.threshold if d.robust else math.nan for d in mine],
+                                   equal_nan=True)
+    assert np.all(np.isnan(scalars(ents[f"/loops/{plant[2].loop_id}/dnl"])[1]))   # healthy: no TDNL
 
 
 def test_alert_texts_only_for_the_sticking_valve(plant, recorded):
@@ -192,7 +192,7 @@ def test_throttle_draws_little_but_logs_every_window(plant, tmp_path):
     t_if, _ = scalars(ents[f"/loops/{alert.loop_id}/if/band/if_z"])
     assert alert.window_end_t in t_if                                      # and explained
     for lp in plant:
-        assert len(ents[f"/loops/{lp.loop_id}/dnl/threshold"].times) == N_WIN
+        assert len(ents[f"/loops/{lp.loop_id}/dnl"].times) == N_WIN
 
 
 def test_publish_does_not_repeat_an_alert_seen_with_its_window(plant, tmp_path):
