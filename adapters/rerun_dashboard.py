@@ -176,6 +176,8 @@ class TokenBucket:
     def take(self, reserve: float = 0.0) -> bool:
         """Take a token if one is left above ``reserve`` (tokens kept for more important takers)."""
         now = self.clock()
+        if math.isinf(self.rate):
+            return True
         self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
         self.last = now
         if self.tokens >= 1.0 + reserve:
@@ -287,14 +289,20 @@ class RerunDashboard:
     focus : loops always drawn and explained; the first one is the blueprint's drill-down
         (else the first loop that raises an alert, else the first loop seen).
     clock : monotonic wall clock in seconds (injected; only used for throttling).
+    offline : for recordings rendered after the fact (``loopwatch replay``): no wall-clock
+        throttle; every window is drawn, and a window is explained when it raises or clears an
+        alert or starts after the last explained window of its loop (each stretch of data is
+        decomposed once).
     on_close : called after the recording is flushed and disconnected (e.g. stop a web viewer).
     """
 
     def __init__(self, rec, *, draw_per_s: float = 50.0, draw_burst: float = 100.0, explain_per_s: float = 2.0,
                  explain_burst: float = 10.0, overview_every_s: float = 2.0, overview_rows: int = 50,
                  focus: Iterable[str] = (), clock: Callable[[], float] = time.monotonic,
-                 send_blueprint: bool = True, on_close: Callable[[], None] | None = None) -> None:
+                 send_blueprint: bool = True, on_close: Callable[[], None] | None = None,
+                 offline: bool = False) -> None:
         self.rec = rec
+        self.offline = offline
         self.clock = clock
         self.draw_bucket = TokenBucket(draw_per_s, draw_burst, clock)
         self.explain_bucket = TokenBucket(explain_per_s, explain_burst, clock)
@@ -347,9 +355,12 @@ class RerunDashboard:
             priority = alert is not None or focus
             # EMD is the expensive part: only focus loops bypass its budget; an alert's window may use
             # the whole budget, other windows only what is above half of it
-            explain = d.verdict in _EXPLAINABLE and (
-                focus or self.explain_bucket.take(reserve=0.0 if alert is not None else self.explain_bucket.burst / 2))
-            if explain or priority or self.draw_bucket.take():
+            if self.offline:
+                explain = d.verdict in _EXPLAINABLE and (priority or window.start_t > st.explained_end)
+            else:
+                explain = d.verdict in _EXPLAINABLE and (focus or self.explain_bucket.take(
+                    reserve=0.0 if alert is not None else self.explain_bucket.burst / 2))
+            if explain or priority or self.offline or self.draw_bucket.take():
                 self._draw(loop_id, st, window)
                 if explain:
                     self._explain(loop_id, st, window, result)

@@ -195,6 +195,22 @@ def test_throttle_draws_little_but_logs_every_window(plant, tmp_path):
         assert len(ents[f"/loops/{lp.loop_id}/dnl"].times) == N_WIN
 
 
+def test_offline_draws_everything_and_decomposes_each_stretch_once(plant, tmp_path):
+    """Replay mode: no wall clock; with windows of 1024 every 256 samples a loop's window is
+    explained when it starts after the last explained one (windows 0 and 4) or changes the alert
+    state (the stiction loop raises on window 1, so its next stretch starts at window 5)."""
+    path = tmp_path / "offline.rrd"
+    sink = open_rerun_sink(f"save:{path}", announce=None, offline=True, clock=FrozenClock())
+    fed = feed_plant(sink, plant)
+    sink.close()
+    st, ents = sink.status(), read_rrd(path)
+    assert st["drawn"] == 3 * N_WIN and st.get("draw_skipped", 0) == 0
+    assert fed.alerts()[0].window_seq == 1
+    assert st["explained"] == 3 + 2                       # stiction 0, 1, 5; tuning 0, 4; healthy none
+    t, _ = scalars(ents[f"/loops/{plant[0].loop_id}/imfs/band"])
+    np.testing.assert_array_equal(t, T0 + np.arange(5 * HOP + W))     # windows 0, 1, 5 tile [0, end of 5] once
+
+
 def test_publish_does_not_repeat_an_alert_seen_with_its_window(plant, tmp_path):
     path = tmp_path / "a.rrd"
     sink = open_rerun_sink(f"save:{path}", announce=None)
