@@ -23,7 +23,7 @@ from .cdp_screenshot import chromium_path, screenshot
 from .conftest import loopback_port
 
 ROOT = Path(__file__).resolve().parents[1]
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1500)]
 
 
 def colour_pixels(png: bytes, rgb) -> int:
