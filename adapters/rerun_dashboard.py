@@ -572,6 +572,18 @@ def _rerun_cli() -> str:
     raise AdapterError("the rerun viewer binary (package rerun_cli of rerun-sdk) is missing: cannot serve the web viewer")
 
 
+def _die_with_parent() -> None:
+    """In the viewer's child process (Linux): SIGTERM when loopwatch dies, even by SIGKILL, so
+    that no viewer is left holding the port."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def start_web_viewer(source: str, *, host: str = "127.0.0.1", web_port: int = DEFAULT_WEB_PORT,
                      grpc_port: int | None = None, timeout_s: float = 20.0) -> subprocess.Popen:
     """Serve rerun's web viewer on ``host:web_port`` with the ``rerun`` CLI (bound to ``host``
@@ -591,7 +603,7 @@ def start_web_viewer(source: str, *, host: str = "127.0.0.1", web_port: int = DE
     if grpc_port is not None:
         cmd += ["--port", str(grpc_port)]
     proc = subprocess.Popen([*cmd, source], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            env={**os.environ, "RUST_LOG": "warn"})
+                            env={**os.environ, "RUST_LOG": "warn"}, preexec_fn=_die_with_parent)
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if proc.poll() is not None:

@@ -30,7 +30,12 @@ def run(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     dashboard = open_dashboard(settings, args.rerun)  # issue 6: rerun sink, None when off
-    running = start_monitor(settings, window_sinks=[dashboard] if dashboard else [])
+    try:
+        running = start_monitor(settings, window_sinks=[dashboard] if dashboard else [])
+    except BaseException:
+        if dashboard is not None:
+            dashboard.close()
+        raise
     print(f"loopwatch monitor {settings.instance}: zenoh {settings.zenoh.mode} listen {settings.zenoh.listen} "
           f"connect {settings.zenoh.connect}; samples {settings.keys.prefix}/**, alerts "
           f"{settings.keys.alert_prefix}/<loop>, status loopwatch/{settings.instance}/status", flush=True)
