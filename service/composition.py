@@ -13,7 +13,7 @@ from .monitor import AnalysisConfig, LoopConfig, Monitor, MonitorCore, make_exec
 from .ports import AlertSink, WindowSink
 from .settings import LoopSettings, MonitorSettings, WindowSettings
 
-__all__ = ["loop_config_factory", "build_core", "build_recorder", "RunningMonitor", "start_monitor"]
+__all__ = ["loop_config_factory", "build_core", "build_recorder", "RunningMonitor", "start_monitor", "open_dashboard"]
 
 log = logging.getLogger("loopwatch.composition")
 
@@ -80,6 +80,25 @@ def build_recorder(settings: MonitorSettings):
                             flush_s=rec.flush_s, queue_max=rec.queue_windows)
     log.info("recording every analysed window to %s (%s)", rec.dir, recorder.state)
     return recorder
+
+
+# --- rerun dashboard (issue 6) ---------------------------------------------------------------
+def open_dashboard(settings: MonitorSettings, spec: str | None = None, announce=print):
+    """The rerun dashboard sink for ``spec`` (default ``settings.rerun.spec``), or ``None`` when off.
+
+    Pass it to :func:`start_monitor` as a window sink (it logs the alerts it is given with the
+    windows) and close it after the monitor.
+    """
+    r = settings.rerun
+    spec = spec or r.spec
+    if not spec:
+        return None
+    from adapters.rerun_dashboard import open_rerun_sink
+
+    return open_rerun_sink(spec, host=r.host, web_port=r.web_port, announce=announce, draw_per_s=r.draw_per_s,
+                           explain_per_s=r.explain_per_s, overview_every_s=r.overview_every_s,
+                           overview_rows=r.overview_rows, focus=r.focus)
+# --- end rerun dashboard ----------------------------------------------------------------------
 
 
 @dataclass

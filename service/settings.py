@@ -31,6 +31,7 @@ __all__ = [
     "IngestSettings",
     "LoopSettings",
     "RecordingSettings",
+    "RerunSettings",
     "MonitorSettings",
     "load_settings",
 ]
@@ -190,6 +191,36 @@ class LoopSettings(_Strict):
     window: WindowSettings | None = None
 
 
+# --- rerun dashboard (issue 6) ---------------------------------------------------------------
+class RerunSettings(_Strict):
+    """The rerun dashboard (``adapters.rerun_dashboard``); off unless ``spec`` is set.
+
+    ``spec``: ``save:PATH.rrd``, ``serve`` / ``serve:PORT`` / ``serve:HOST:PORT`` (gRPC on ``PORT``,
+    default 9876, and the web viewer on ``web_port``, bound to ``host``), or ``connect:ADDR``.
+    Throttling limits what is drawn, never what is analysed: ``draw_per_s`` windows' signals and
+    ``explain_per_s`` windows' IMFs per wall second; ``focus`` loops are always drawn.
+    """
+
+    spec: str | None = None
+    host: str = "127.0.0.1"
+    web_port: Annotated[int, Field(ge=0, le=65535)] = 9090
+    draw_per_s: Annotated[float, Field(ge=0)] = 50.0
+    explain_per_s: Annotated[float, Field(ge=0)] = 2.0
+    overview_every_s: Annotated[float, Field(gt=0)] = 2.0
+    overview_rows: Annotated[int, Field(ge=1)] = 50
+    focus: list[str] = []
+
+    @field_validator("spec")
+    @classmethod
+    def _spec(cls, v: str | None) -> str | None:
+        if v is not None:
+            from adapters.rerun_dashboard import parse_rerun_spec
+
+            parse_rerun_spec(v)  # RerunSpecError is a ValueError: reported with the key
+        return v
+# --- end rerun dashboard ----------------------------------------------------------------------
+
+
 class MonitorSettings(BaseSettings):
     """Everything ``loopwatch monitor`` needs; see ``deploy/monitor.toml``."""
 
@@ -206,6 +237,7 @@ class MonitorSettings(BaseSettings):
     ingest: IngestSettings = IngestSettings()
     recording: RecordingSettings = RecordingSettings()
     loops: dict[str, LoopSettings] = {}
+    rerun: RerunSettings = RerunSettings()  # issue 6: off by default
 
     @field_validator("instance")
     @classmethod

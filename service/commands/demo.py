@@ -29,6 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--record", type=Path, default=Path("out/demo-mcap"), metavar="DIR",
                    help="MCAP recording of every analysed window (default out/demo-mcap; see `loopwatch replay`)")
     p.add_argument("--no-record", dest="record", action="store_const", const=None, help="do not record")
+    p.add_argument("--rerun", default="save:out/demo.rrd", metavar="SPEC",  # issue 6
+                   help="rerun dashboard: save:PATH.rrd (default save:out/demo.rrd), serve[:[HOST:]PORT[:WEB_PORT]], "
+                        "connect:ADDR, or off")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
 
     from adapters.zenoh_session import open_session
 
-    from ..composition import start_monitor
+    from ..composition import open_dashboard, start_monitor
     from ..settings import load_settings
     from .simulate_plant import PlantPublisher, expects_alert, make_plant
 
@@ -54,7 +57,9 @@ def run(args: argparse.Namespace) -> int:
         truth.add_row(lp.loop_id, lp.case, lp.truth, "yes" if expects_alert(lp.truth) else "no")
     console.print(truth)
 
-    running = start_monitor(settings)
+    dashboard = open_dashboard(settings, None if args.rerun == "off" else args.rerun,  # issue 6
+                               announce=lambda m: console.print(m, markup=False, highlight=False))
+    running = start_monitor(settings, window_sinks=[dashboard] if dashboard else [])
     plant = open_session("peer", connect=[endpoint])
     alerts: dict[str, list[dict]] = {}
     lock = threading.Lock()
@@ -83,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
         sub.undeclare()
         running.close()
         plant.close()
+        if dashboard is not None:
+            dashboard.close()
     recording = running.monitor.status(loop="").get("sinks", {}).get("recording")
 
     table = Table(title=f"loopwatch demo: truth vs. alert state ({time.monotonic() - t:.0f} s)")
@@ -116,4 +123,11 @@ def run(args: argparse.Namespace) -> int:
                       f"  loopwatch export {args.record} --loop {first} --csv out/{first.replace('/', '_')}.csv\n"
                       f"  loopwatch replay {args.record} --publish --speed 60 --connect tcp/127.0.0.1:7447   "
                       "# to a running monitor")
+    if args.rerun.startswith("save:"):  # issue 6
+        path = args.rerun[len("save:"):]
+        from adapters.rerun_dashboard import web_viewer_url
+
+        console.print(f"rerun recording of the demo: {path}\n  open it: .venv/bin/rerun {path}\n  or in a browser: "
+                      f".venv/bin/rerun --serve-web --bind 127.0.0.1 {path}  then "
+                      f"{web_viewer_url(9090, 'rerun+http://127.0.0.1:9876/proxy')}", markup=False, highlight=False)
     return 0 if mismatches == 0 else 1

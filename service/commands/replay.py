@@ -53,6 +53,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
     p.add_argument("--json", type=Path, default=None, metavar="OUT", help="write the per-window report as JSON")
     p.add_argument("--all", action="store_true", help="list every window (default: only those that differ)")
+    p.add_argument("--rerun", default=None, metavar="SPEC",
+                   help="also render the replayed windows as a rerun dashboard: save:OUT.rrd, serve[:PORT], "
+                        "connect:ADDR (every window drawn)")
     p.add_argument("--publish", action="store_true",
                    help="re-publish the recorded raw samples over zenoh instead of re-analysing")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
@@ -90,26 +93,40 @@ def run(args: argparse.Namespace) -> int:
     err = Console(stderr=True)
     total = count_windows(args.paths, args.loop) if args.t_from is None and args.t_to is None else None
     if args.publish:
+        if args.rerun:
+            raise UsageError("--rerun renders the recomputed windows; it cannot be combined with --publish")
         return _publish(args, console, err, total)
     from ..replay import replay_windows
 
+    sinks = []
+    if args.rerun:
+        from adapters.rerun_dashboard import open_rerun_sink
+
+        sinks.append(open_rerun_sink(args.rerun, offline=True,
+                                     announce=lambda m: err.print(m, markup=False, highlight=False)))
+
     rows, per_loop = [], {}
     t = time.monotonic()
-    with _progress(err) as progress:
-        task = progress.add_task("replaying windows", total=total)
-        for r in replay_windows(args.paths, loops=args.loop, t_from=args.t_from, t_to=args.t_to):
-            w = r.window
-            rows.append({"loop": w.loop_id, "seq": w.seq, "start_t": w.start_t, "end_t": w.end_t,
-                         "source": r.recorded.source, "recorded": _figures(r.recorded.result),
-                         "recomputed": _figures(r.result), "same_result": r.same_result,
-                         "recorded_alert": r.recorded.alert.state if r.recorded.alert else None,
-                         "recomputed_alert": r.alert.state if r.alert else None, "same_alert": r.same_alert})
-            s = per_loop.setdefault(w.loop_id, {"windows": 0, "same": 0, "alerts_recorded": 0, "alerts_recomputed": 0})
-            s["windows"] += 1
-            s["same"] += r.same_result and r.same_alert
-            s["alerts_recorded"] += r.recorded.alert is not None
-            s["alerts_recomputed"] += r.alert is not None
-            progress.advance(task)
+    try:
+        with _progress(err) as progress:
+            task = progress.add_task("replaying windows", total=total)
+            for r in replay_windows(args.paths, loops=args.loop, t_from=args.t_from, t_to=args.t_to,
+                                    sinks=sinks):
+                w = r.window
+                rows.append({"loop": w.loop_id, "seq": w.seq, "start_t": w.start_t, "end_t": w.end_t,
+                             "source": r.recorded.source, "recorded": _figures(r.recorded.result),
+                             "recomputed": _figures(r.result), "same_result": r.same_result,
+                             "recorded_alert": r.recorded.alert.state if r.recorded.alert else None,
+                             "recomputed_alert": r.alert.state if r.alert else None, "same_alert": r.same_alert})
+                s = per_loop.setdefault(w.loop_id, {"windows": 0, "same": 0, "alerts_recorded": 0, "alerts_recomputed": 0})
+                s["windows"] += 1
+                s["same"] += r.same_result and r.same_alert
+                s["alerts_recorded"] += r.recorded.alert is not None
+                s["alerts_recomputed"] += r.alert is not None
+                progress.advance(task)
+    finally:
+        for sink in sinks:
+            sink.close()
     elapsed = time.monotonic() - t
     differ = [x for x in rows if not (x["same_result"] and x["same_alert"])]
     shown = rows if args.all else differ
