@@ -28,6 +28,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("monitor",), "service.commands.monitor", "run the always-on monitor (zenoh in, alerts and status out)"),
     (("simulate", "plant"), "service.commands.simulate_plant", "publish a simulated mixed plant over zenoh"),
     (("identify",), "service.commands.identify", "identify Karnopp valve friction parameters from bench or positioner data"),
+    (("reconcile",), "service.commands.reconcile", "find where the Karnopp model and a valve record disagree and name the missing effect"),
 ]
 
 _USER_ERRORS = (PipelineError, ModelError, AdapterError, ServiceError)
