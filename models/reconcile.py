@@ -13,7 +13,7 @@ missing effect explains it, and how much does adding it shrink the gap.
    squared residual is split by regime; the residual–input cross-correlation is reported.
 3. **Which effect is missing**: each candidate of :data:`models.valve_effects.EFFECTS` is fitted
    as an extension (all parameters refitted) on the *training* blocks of the record (even
-   ``block_s`` blocks) and scored on the *held-out* blocks (odd blocks, never used for fitting).
+   blocks of ``block_s``) and scored on the *held-out* blocks (odd blocks, never used for fitting).
    An effect passes when, on the held-out blocks,
 
    * it lowers the Bayesian information criterion computed with the effective number of
@@ -86,7 +86,8 @@ class ReconcileConfig:
     ----------
     sa : diaphragm area ``S_a``, m² (``F_ext = S_a·p``, eq. 1).
     m : moving mass held fixed, kg.
-    block_s : length of the interleaved training / held-out blocks, s.
+    block_s : longest interleaved training / held-out block, s (shorter records get shorter
+        blocks: at least 20 held-out blocks).
     alpha : family-wise significance level of the held-out test of one search step.
     min_gain : smallest held-out model-error power worth a model term, as a fraction of the
         measurement-noise power.
@@ -97,7 +98,7 @@ class ReconcileConfig:
 
     sa: float = SA_M2
     m: float = M_KG
-    block_s: float = 1.0
+    block_s: float = 0.5
     alpha: float = 0.01
     min_gain: float = 0.1
     max_effects: int = 3
@@ -627,7 +628,11 @@ def reconcile(
     """Run the discrepancy workflow on a record (and optionally a signature record, used as a
     second record in the fit and the held-out scoring).  See the module docstring."""
     cfg = config or ReconcileConfig()
-    recs = [prepare(data, cfg.block_s)] + ([prepare(signature, cfg.block_s)] if signature is not None else [])
+    # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
+    def blk(d: ValveData) -> float:
+        return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
+
+    recs = [prepare(data, blk(data))] + ([prepare(signature, blk(signature))] if signature is not None else [])
     dv = 0.01 * max(r.speed_max for r in recs)  # DV: 1 % of the largest speed (section 3)
     n_all = sum(r.x.size for r in recs)
     sigma = math.sqrt(sum(r.sigma_x**2 * r.x.size for r in recs) / n_all)
