@@ -253,9 +253,10 @@ class Prepared:
     speed_typ: float  # median sliding speed, m/s
     speed_max: float
     rest: np.ndarray  # measured rest positions where the model is re-seated (NaN elsewhere)
+    sa: float = SA_M2  # diaphragm area the record is fitted with, m²
 
 
-def prepare(data: ValveData, block_s: float = 1.0) -> Prepared:
+def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepared:
     """Check a record (:func:`models.identification.check_record`) and prepare it."""
     dt = check_record(data)
     x = np.asarray(data.x, float)
@@ -274,7 +275,7 @@ def prepare(data: ValveData, block_s: float = 1.0) -> Prepared:
     return Prepared(
         data=data, dt=dt, p_smooth=ps, x=x, x0=float(np.median(x[:31])), labels=lab, train=block % 2 == 0,
         block=block, sigma_x=noise_std(x), speed_typ=float(np.median(speed[moving])) if moving.any() else 1e-3,
-        speed_max=float(np.max(speed)), rest=rest,
+        speed_max=float(np.max(speed)), rest=rest, sa=sa,
     )
 
 
@@ -308,16 +309,18 @@ def _residuals(vals, recs, cfg, dv) -> list[np.ndarray]:
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
     """(lower, upper, scale) of one parameter; physical ranges only (a mass-like free parameter
     could absorb a lag: the mass is held and every range is bounded)."""
-    k, fc = vals["k"], max(vals["fc"], 1.0)
+    k = vals["k"]
+    f_span = max(float(np.ptp(r.p_smooth)) for r in recs) * recs[0].sa  # force range of the record
+    fc = max(vals["fc"], 0.01 * f_span)
     span = max(float(np.ptp(r.x)) for r in recs)
     dur = min(r.x.size * r.dt for r in recs)
     vmax = max(r.speed_max for r in recs)
     table = {
         "k": (0.05 * k, 20 * k, k),
-        "fc": (0.0, 10 * fc, fc),
+        "fc": (0.0, max(10 * fc, f_span), fc),
         "fv": (0.0, 1e3 * max(vals["fv"], 10.0 * fc / max(vmax, 1e-6)), max(vals["fv"], 0.1 * fc / max(vmax, 1e-6))),
         "bias": (-1.0, 1.0, max(span, 1e-4)),
-        "dfs": (0.0, 3.0 * fc, fc),
+        "dfs": (0.0, max(3.0 * fc, 0.5 * f_span), fc),
         "vs": (1e-3 * vmax, 2.0 * vmax, max(vmax, 1e-6) * 0.1),
         "tau": (0.0, 0.25 * dur, 0.1),
         "theta": (0.0, 0.25 * dur, 0.05),
@@ -632,7 +635,7 @@ def reconcile(
     def blk(d: ValveData) -> float:
         return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
 
-    recs = [prepare(data, blk(data))] + ([prepare(signature, blk(signature))] if signature is not None else [])
+    recs = [prepare(data, blk(data), cfg.sa)] + ([prepare(signature, blk(signature), cfg.sa)] if signature is not None else [])
     dv = 0.01 * max(r.speed_max for r in recs)  # DV: 1 % of the largest speed (section 3)
     n_all = sum(r.x.size for r in recs)
     sigma = math.sqrt(sum(r.sigma_x**2 * r.x.size for r in recs) / n_all)
