@@ -781,6 +781,13 @@ def reconcile(
         steps.append(full_step(best_c.effect, cur, free, evidence))
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
+    if steps:
+        # the baseline is reported as fitted as well as we can: started again from the final
+        # model's Karnopp parameters (the effects removed); the better of the two is kept, so that
+        # "before" is never a baseline the search merely failed to fit
+        again = full_step("baseline", {n: cur[n] for n in _BASE}, _BASE, baseline.evidence)
+        if again.rmse < baseline.rmse:
+            baseline = again
     if not accepted and "no missing" not in message:
         message = "no missing effect found: " + message
     return Reconciliation(
