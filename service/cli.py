@@ -31,6 +31,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("replay",), "service.commands.replay", "re-run the pipeline on recorded windows (MCAP), or re-publish them"),
     (("recover",), "service.commands.recover", "make a recording cut short by a crash a valid MCAP file"),
     (("export",), "service.commands.export", "write one loop's recorded samples as the CSV of `analyze`"),
+    (("reconcile",), "service.commands.reconcile", "find where the Karnopp model and a valve record disagree and name the missing effect"),
 ]
 
 _USER_ERRORS = (PipelineError, ModelError, AdapterError, ServiceError)

@@ -1,0 +1,468 @@
+"""Karnopp valve with the effects its paper structure leaves out (issue 8).
+
+The baseline is model 1 of Romano & Garcia (the spec paper,
+``/work/shared/papers/romano-garcia-karnopp-valve-identification.md``): the force balance of
+eq. (1) ``m·ẍ = S_a·P − k·x + F_friction`` with Karnopp friction, eq. (2), ``F_s = F_c``, and the
+measured position ``x_meas = x − x̄`` (eq. 10), driven by the *recorded* pressure.  The five
+effects of issue 8, each a physical extension with one or two parameters:
+
+``slip_jump``
+    static friction above Coulomb friction, ``F_s > F_c`` (third line of eq. 2 with ``F_s``).
+``stribeck``
+    sliding friction falling from ``F_s`` to ``F_c`` with speed,
+    ``(F_c + (F_s − F_c)·exp(−(v/v_s)²))·sgn(v)`` in place of ``F_c·sgn(v)`` in the first line of
+    eq. (2).
+``actuator_lag``
+    the actuator pressure follows the recorded ``p`` through a first-order lag ``τ``.
+``dead_time``
+    the actuator pressure is the recorded ``p`` delayed by ``θ``.
+``deadband``
+    backlash of total width ``d`` between the stem and the position transmitter: the recorded
+    position stays put until the stem has moved ``d/2`` past it after a reversal.
+
+The mechanics are :func:`models.karnopp.karnopp_step` (same semi-implicit step, same
+stick/breakaway/slip logic), compiled with numba because a fit simulates the 60 000-step record
+hundreds of times; with ``v_s = 0``, ``τ = θ = d = 0`` :func:`simulate_effects` reproduces
+:func:`models.karnopp.simulate` to rounding.  Pure functions: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+from numba import njit
+from scipy.signal import lfilter
+
+from .errors import ModelConfigError
+from .karnopp import M_KG, SA_M2, KarnoppParams
+
+__all__ = [
+    "EFFECTS",
+    "EFFECT_PARAMS",
+    "EffectValve",
+    "EffectSim",
+    "actuator_pressure",
+    "transmitter",
+    "simulate_effects",
+    "hide_effects",
+    "parse_hide",
+    "HIDE_DEFAULTS",
+    "HiddenRecord",
+    "hidden_record",
+]
+
+#: The effect names of issue 8, in a fixed order.
+EFFECTS = ("slip_jump", "stribeck", "actuator_lag", "dead_time", "deadband")
+#: The parameters each effect adds to the baseline (field names of :class:`EffectValve`).
+EFFECT_PARAMS: dict[str, tuple[str, ...]] = {
+    "slip_jump": ("fs",),
+    "stribeck": ("fs", "vs"),
+    "actuator_lag": ("tau",),
+    "dead_time": ("theta",),
+    "deadband": ("deadband",),
+}
+
+
+@dataclass(frozen=True)
+class EffectValve:
+    """The Karnopp valve of eq. (1)–(2) and (10) plus the five effects.
+
+    Attributes
+    ----------
+    k, fc, fv, bias : spring constant (N/m), Coulomb friction (N), viscous friction (N·s/m) and
+        measurement bias ``x̄`` (m) of the baseline.
+    m : moving mass, kg (held at its nominal value: not identifiable at 1 ms, see
+        :mod:`models.identification`).
+    sa : diaphragm area ``S_a``, m².
+    dv : limit velocity DV of eq. (2), m/s.
+    fs : static friction ``F_s`` (N); ``nan`` means ``F_s = F_c`` (the paper's model 1).
+    vs : Stribeck speed ``v_s`` (m/s); 0: sliding friction is ``F_c`` at every speed.
+    tau : actuator lag ``τ`` (s); 0: none.
+    theta : dead time ``θ`` (s); 0: none.
+    deadband : total backlash width ``d`` between stem and transmitter (m); 0: none.
+    x_min, x_max : travel stops in the spring coordinate (m), ±inf: none.
+    """
+
+    k: float
+    fc: float
+    fv: float
+    bias: float = 0.0
+    m: float = M_KG
+    sa: float = SA_M2
+    dv: float = 2e-4
+    fs: float = math.nan
+    vs: float = 0.0
+    tau: float = 0.0
+    theta: float = 0.0
+    deadband: float = 0.0
+    x_min: float = -math.inf
+    x_max: float = math.inf
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ModelConfigError:
+            return ModelConfigError(f"EffectValve.{name} = {getattr(self, name)!r}: {why}")
+
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or (math.isnan(v) and f.name != "fs"):
+                raise bad(f.name, "must be a number")
+        for name in ("k", "fc", "fv", "bias", "m", "sa", "dv", "vs", "tau", "theta", "deadband"):
+            if not math.isfinite(getattr(self, name)):
+                raise bad(name, "must be finite; the force balance (eq. 1) is undefined otherwise")
+        for name in ("m", "k", "sa"):
+            if getattr(self, name) <= 0:
+                raise bad(name, "must be > 0 (eq. 1 needs a mass, a spring and an actuator)")
+        for name in ("fc", "fv", "dv", "vs", "tau", "theta", "deadband"):
+            if getattr(self, name) < 0:
+                raise bad(name, "must be >= 0; a negative value has no physical meaning here")
+        if not math.isnan(self.fs) and not self.fs >= self.fc:
+            raise bad("fs", f"must be >= fc ({self.fc!r}): static friction below Coulomb friction re-sticks at once")
+        if not self.x_min < self.x_max:
+            raise ModelConfigError(f"EffectValve x_min = {self.x_min!r}, x_max = {self.x_max!r}: need x_min < x_max")
+
+    @property
+    def fs_eff(self) -> float:
+        """Static friction used by the simulation (``F_c`` when ``fs`` is nan)."""
+        return self.fc if math.isnan(self.fs) else self.fs
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """Names of the effects present (in :data:`EFFECTS` order)."""
+        out = []
+        if self.fs_eff > self.fc and self.vs == 0.0:
+            out.append("slip_jump")
+        if self.fs_eff > self.fc and self.vs > 0.0:
+            out.append("stribeck")
+        if self.tau > 0:
+            out.append("actuator_lag")
+        if self.theta > 0:
+            out.append("dead_time")
+        if self.deadband > 0:
+            out.append("deadband")
+        return tuple(out)
+
+    def replace(self, **changes: float) -> EffectValve:
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ModelConfigError(f"EffectValve has no field(s) {', '.join(sorted(unknown))}")
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, float]:
+        d = asdict(self)
+        d["fs"] = self.fs_eff
+        return {k: v for k, v in d.items() if math.isfinite(v)}
+
+    @classmethod
+    def from_karnopp(cls, p: KarnoppParams, **changes: float) -> EffectValve:
+        """The valve of a :class:`KarnoppParams` (its V/P lag ``tau_p`` is *not* carried over: it
+        acts before the recorded pressure)."""
+        base = cls(k=p.k, fc=p.fc, fv=p.fv, bias=p.bias, m=p.m, sa=p.sa, dv=p.dv, fs=p.fs,
+                   x_min=p.x_min, x_max=p.x_max)
+        return base.replace(**changes) if changes else base
+
+
+# --------------------------------------------------------------------------- pure pieces
+
+
+def actuator_pressure(p: np.ndarray, dt: float, tau: float = 0.0, theta: float = 0.0) -> np.ndarray:
+    """Actuator pressure from the recorded pressure: dead time ``θ`` (linear interpolation between
+    samples, ``p[0]`` before the record) then a first-order lag ``τ`` (exact for a pressure held
+    over each step, as :func:`models.karnopp.karnopp_step` does for the V/P lag), starting at
+    rest at ``p[0]``."""
+    p = np.asarray(p, float)
+    if theta > 0:
+        idx = np.arange(p.size) - theta / dt
+        p = np.interp(idx, np.arange(p.size), p)  # np.interp holds p[0] for idx < 0
+    if tau > 0:
+        a = math.exp(-dt / tau)
+        p = lfilter([1.0 - a], [1.0, -a], p, zi=[a * p[0]])[0]
+    return p
+
+
+@njit(cache=True)
+def _backlash(s, half, y0):  # pragma: no cover - compiled
+    y = np.empty_like(s)
+    yi = y0
+    for i in range(s.size):
+        si = s[i]
+        if si - yi > half:
+            yi = si - half
+        elif yi - si > half:
+            yi = si + half
+        y[i] = yi
+    return y
+
+
+def transmitter(x_stem: np.ndarray, deadband: float, y0: float | None = None) -> np.ndarray:
+    """Position seen through a backlash of total width ``d = deadband``: the reading stays put
+    until the stem is ``d/2`` away from it, then is dragged along at ``d/2`` behind.  ``y0`` is
+    the initial reading (default: the first stem position)."""
+    x_stem = np.asarray(x_stem, float)
+    if deadband <= 0:
+        return x_stem.copy()
+    return _backlash(x_stem, 0.5 * deadband, float(x_stem[0] if y0 is None else y0))
+
+
+@njit(cache=True)
+def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
+    """Speed u > 0 after a sliding step: root of A·u + h·F(u) − gs = 0 with the sliding friction
+    F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck), bracketed in
+    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed."""
+    hi = (gs - h * fc) / A
+    if vs <= 0.0 or fs <= fc:
+        return hi
+    lo = 0.0
+    u = min(max(u0, 0.0), hi)
+    for _ in range(30):
+        r = (u / vs) ** 2
+        e = math.exp(-r)
+        phi = A * u + h * (fc + (fs - fc) * e) - gs
+        if abs(phi) <= 1e-12 * (abs(gs) + 1e-30):
+            return u
+        if phi < 0.0:
+            lo = u
+        else:
+            hi = u
+        dphi = A - h * (fs - fc) * e * 2.0 * u / (vs * vs)
+        un = u - phi / dphi if dphi > 0.0 else -1.0
+        if not (lo < un < hi):
+            un = 0.5 * (lo + hi)
+        if abs(un - u) <= 1e-15 + 1e-12 * u:
+            return un
+        u = un
+    return u
+
+
+@njit(cache=True)
+def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, reset):  # pragma: no cover - compiled
+    """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
+    Stribeck sliding friction solved implicitly, and the two stick/slip events placed inside the
+    step instead of on the sample grid (so that the trajectory is continuous in the parameters):
+
+    * breakaway: the net force crosses ``F_s`` at the fraction of the step found by linear
+      interpolation of ``F_ext − k·x`` between samples; the step moves the stem only for the
+      remaining time, with viscous friction acting (``karnopp_step`` leaves ``F_v`` out of the
+      breakaway step, which gives the stem a one-step kick ``h·ΔF/m`` after a steep force step —
+      millimetres for a pressure step on the paper's valve — that depends on how the step falls
+      between samples);
+    * stop: a stem that stops within the step keeps the distance covered while decelerating
+      (half the step speed times the time to stop).
+
+    The transmitter reading ``y`` follows the stem through a backlash of half-width ``half``.
+    ``reset`` (same length, NaN = none) holds measured rest positions (spring coordinate of the
+    reading): at such a sample, if the stem is at rest, stem and reading are shifted together so
+    that the reading equals it (a stuck valve's whole state is its position).
+
+    Returns stem position x, velocity v and reading y.
+    """
+    n = p.size
+    xs = np.empty(n)
+    vsa = np.empty(n)
+    ys = np.empty(n)
+    x = x0
+    y = x0
+    v = v0
+    kh2 = k * h * h
+    A = m + h * fv + kh2
+    fs0 = fs if vs > 0.0 else fc  # sliding friction as the speed goes to zero
+    f_prev = sa * p[0] - k * x
+    for i in range(n):
+        f_net = sa * p[i] - k * x
+        g = m * v + h * f_net
+        if abs(v) < dv:
+            if abs(f_net) <= fs:  # stick (2nd line of eq. 2)
+                v = 0.0
+            else:  # breakaway (3rd line), for the part of the step after the crossing
+                s = 1.0 if f_net > 0.0 else -1.0
+                hr = h
+                if v == 0.0 and abs(f_prev) <= fs and abs(f_net) > abs(f_prev):
+                    hr = h * (abs(f_net) - fs) / (abs(f_net) - abs(f_prev))
+                v = (m * v + hr * (f_net - fs * s)) / (m + hr * fv + k * hr * hr)
+                x = x + hr * v
+        else:  # slip (1st line)
+            s = 1.0 if v > 0.0 else -1.0
+            if s * g > h * fs0:
+                v = s * _slide_speed(A, h, s * g, fc, fs, vs, s * v)
+                x = x + h * v
+            elif abs(g) <= h * fs:  # the stem stops within the step
+                v_free = (g - h * fs0 * s) / A  # where it would be without stopping (sign −s)
+                x = x + 0.5 * h * v * (v / (v - v_free))
+                v = 0.0
+            else:  # it reverses, with friction of the new sign
+                s = -s
+                v = s * _slide_speed(A, h, s * g, fc, fs, vs, 0.0)
+                x = x + h * v
+        if x > x_max:
+            x = x_max
+            v = 0.0
+        elif x < x_min:
+            x = x_min
+            v = 0.0
+        if x - y > half:
+            y = x - half
+        elif y - x > half:
+            y = x + half
+        if v == 0.0 and not math.isnan(reset[i]):
+            x += reset[i] - y
+            y = reset[i]
+        f_prev = sa * p[i] - k * x
+        xs[i] = x
+        vsa[i] = v
+        ys[i] = y
+    return xs, vsa, ys
+
+
+@dataclass(frozen=True)
+class EffectSim:
+    """Result of :func:`simulate_effects`: actuator pressure ``p_act`` (Pa), stem position ``x``
+    (spring coordinate, m), velocity ``v`` (m/s) and the recorded position ``x_meas`` (m, through
+    the transmitter deadband, minus the bias of eq. 10)."""
+
+    p_act: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    x_meas: np.ndarray
+
+
+def simulate_effects(
+    valve: EffectValve,
+    p: np.ndarray,
+    dt: float,
+    *,
+    x0_meas: float | None = None,
+    rest_meas: np.ndarray | None = None,
+) -> EffectSim:
+    """Simulate the extended valve driven by the recorded pressure ``p`` (Pa, one per step of
+    ``dt`` s).  The stem starts at rest at ``x0_meas + x̄`` (measured coordinate; default: at rest
+    under ``p[0]`` with zero net force); the transmitter starts centred on the stem.
+
+    ``rest_meas`` (optional, NaN = none): measured positions at which a stem found at rest is
+    re-seated (multiple shooting from measured rest states, used by :mod:`models.reconcile`)."""
+    p = np.ascontiguousarray(p, dtype=float)
+    if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
+        raise ModelConfigError("p must be a non-empty 1-D array of finite pressures (Pa)")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ModelConfigError(f"dt = {dt!r}: the step must be a finite number > 0")
+    pa = actuator_pressure(p, dt, valve.tau, valve.theta)
+    if x0_meas is None:
+        x0 = min(max(valve.sa * pa[0] / valve.k, valve.x_min), valve.x_max)
+    else:
+        x0 = float(x0_meas) + valve.bias
+    if rest_meas is None:
+        reset = np.full(p.size, np.nan)
+    else:
+        reset = np.ascontiguousarray(rest_meas, dtype=float) + valve.bias
+        if reset.shape != p.shape:
+            raise ModelConfigError("rest_meas must have the length of p")
+    x, v, y = _karnopp_kernel(pa, float(dt), valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs,
+                              valve.dv, valve.sa, x0, 0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, reset)
+    return EffectSim(p_act=pa, x=x, v=v, x_meas=y - valve.bias)
+
+
+# --------------------------------------------------------------------------- hidden effects
+
+
+#: Default size of each effect for ``--hide EFFECT`` without a value.
+HIDE_DEFAULTS: dict[str, tuple[float, ...]] = {
+    "slip_jump": (1.4,),  # Fs / Fc
+    "stribeck": (1.4, 3e-3),  # Fs / Fc, vs (m/s)
+    "actuator_lag": (0.2,),  # tau (s)
+    "dead_time": (0.1,),  # theta (s)
+    "deadband": (0.5e-3,),  # d (m)
+}
+_HIDE_MEANING = {
+    "slip_jump": "R: Fs = R*Fc (R > 1)",
+    "stribeck": "R[:VS]: Fs = R*Fc (R > 1), Stribeck speed VS in m/s",
+    "actuator_lag": "TAU: first-order lag in s",
+    "dead_time": "THETA: dead time in s",
+    "deadband": "D: total deadband width in m",
+}
+
+
+def parse_hide(spec: str) -> tuple[str, tuple[float, ...]]:
+    """Parse ``EFFECT[=value]`` (stribeck: ``stribeck=R:VS``) into a name and its values."""
+    name, _, val = spec.partition("=")
+    name = name.strip()
+    if name not in EFFECTS:
+        raise ModelConfigError(f"unknown effect {name!r}; choose one of {', '.join(EFFECTS)}")
+    default = HIDE_DEFAULTS[name]
+    if not val.strip():
+        return name, default
+    try:
+        vals = tuple(float(v) for v in val.split(":"))
+    except ValueError:
+        raise ModelConfigError(f"--hide {spec!r}: value must be {_HIDE_MEANING[name]}") from None
+    if len(vals) > len(default) or not all(math.isfinite(v) for v in vals):
+        raise ModelConfigError(f"--hide {spec!r}: value must be {_HIDE_MEANING[name]}")
+    vals = vals + default[len(vals):]
+    if name in ("slip_jump", "stribeck") and not vals[0] > 1.0:
+        raise ModelConfigError(f"--hide {spec!r}: the ratio Fs/Fc must be > 1 ({_HIDE_MEANING[name]})")
+    if any(v <= 0 for v in vals):
+        raise ModelConfigError(f"--hide {spec!r}: values must be > 0 ({_HIDE_MEANING[name]})")
+    return name, vals
+
+
+def hide_effects(base: EffectValve, hidden: dict[str, tuple[float, ...]]) -> EffectValve:
+    """The valve ``base`` with the effects ``{name: values}`` (values as :func:`parse_hide`)."""
+    unknown = set(hidden) - set(EFFECTS)
+    if unknown:
+        raise ModelConfigError(f"unknown effect(s) {', '.join(sorted(unknown))}; choose from {', '.join(EFFECTS)}")
+    if "slip_jump" in hidden and "stribeck" in hidden:
+        raise ModelConfigError("slip_jump and stribeck both set F_s; hide one of them")
+    ch: dict[str, float] = {}
+    if "slip_jump" in hidden:
+        ch["fs"] = hidden["slip_jump"][0] * base.fc
+    if "stribeck" in hidden:
+        ch["fs"], ch["vs"] = hidden["stribeck"][0] * base.fc, hidden["stribeck"][1]
+    if "actuator_lag" in hidden:
+        ch["tau"] = hidden["actuator_lag"][0]
+    if "dead_time" in hidden:
+        ch["theta"] = hidden["dead_time"][0]
+    if "deadband" in hidden:
+        ch["deadband"] = hidden["deadband"][0]
+    return base.replace(**ch)
+
+
+@dataclass(frozen=True)
+class HiddenRecord:
+    """A simulated record with hidden effects: recorded ``p`` (Pa, the V/P output, with noise),
+    recorded ``x`` (m, through the transmitter, with noise), and the noise-free truth."""
+
+    t: np.ndarray
+    p: np.ndarray
+    x: np.ndarray
+    valve: EffectValve
+    p_true: np.ndarray = field(repr=False)
+    x_true: np.ndarray = field(repr=False)
+
+
+def hidden_record(
+    params: KarnoppParams,
+    test,
+    hidden: dict[str, tuple[float, ...]] | None = None,
+    *,
+    noise_x: float = 1e-5,
+    noise_p: float = 200.0,
+    seed: int | None = 0,
+    dt: float = 1e-3,
+) -> HiddenRecord:
+    """Simulate a bench test of ``params`` with hidden effects (see :func:`hide_effects`).
+
+    The pressure command passes the V/P lag ``params.tau_p`` (as in
+    :func:`models.valve_tests.bench_record`); that pressure is what is recorded.  The actuator
+    sees it through the hidden dead time and lag; the stem moves by eq. (1)–(2) with the hidden
+    friction; the transmitter adds the hidden deadband; white Gaussian noise (seeded) is added to
+    the recorded pressure and position.
+    """
+    from .valve_tests import Excitation, excitation
+
+    exc = test if isinstance(test, Excitation) else excitation(test, dt)
+    valve = hide_effects(EffectValve.from_karnopp(params), hidden or {})
+    p_rec = actuator_pressure(exc.p_cmd, exc.dt, params.tau_p, 0.0)
+    sim = simulate_effects(valve, p_rec, exc.dt)
+    rng = np.random.default_rng(seed)
+    p = p_rec + noise_p * rng.standard_normal(p_rec.size)
+    x = sim.x_meas + noise_x * rng.standard_normal(p_rec.size)
+    return HiddenRecord(t=exc.t, p=p, x=x, valve=valve, p_true=p_rec, x_true=sim.x_meas)

@@ -1,0 +1,73 @@
+"""The discrepancy workflow (models/reconcile.py, `loopwatch reconcile`) on records with a planted
+hidden effect (or none).  Short records keep the default run fast; the full suite is
+tests/bench/accuracy_reconcile.py."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from models.identification import ValveData
+from models.karnopp import PRESETS
+from models.reconcile import REGIMES, reconcile, smooth_pressure
+from models.valve_effects import hidden_record
+from models.valve_tests import isa_steps
+from service.cli import main
+
+SHORT = isa_steps(steps_pct=(1.0, 5.0, 20.0, 50.0), hold=2.0)  # 18 s of ISA-75.25 steps
+
+
+def _run(hidden, seed, tau_p=0.0):
+    rec = hidden_record(PRESETS["low"].replace(tau_p=tau_p), SHORT, hidden, seed=seed)
+    return reconcile(ValveData(rec.t, rec.p, rec.x, "short"))
+
+
+def test_smoothing_keeps_steps_and_removes_noise():
+    rng = np.random.default_rng(0)
+    clean = np.r_[np.full(3000, 1e5), np.full(3000, 1.6e5)]
+    p = clean + 200 * rng.standard_normal(clean.size)
+    ps = smooth_pressure(p, 1e-3)
+    assert np.std((ps - clean)[500:2500]) < 40  # steady: averaged well below the 200 Pa noise
+    assert abs(ps[3005] - 1.6e5) < 1000 and abs(ps[2994] - 1e5) < 1000  # no smear across the step
+
+
+def test_clean_record_names_no_effect():
+    r = _run({}, seed=1)
+    assert r.effects == []
+    assert r.final.rmse < 1.2 * r.noise_floor
+    assert r.noise_floor == pytest.approx(1e-5, rel=0.1)
+    assert set(r.regime_share) <= set(REGIMES) and sum(r.regime_share.values()) == pytest.approx(1.0)
+
+
+def test_hidden_dead_time_is_named_and_the_gap_shrinks():
+    r = _run({"dead_time": (0.03,)}, seed=2)
+    assert r.effects[:1] == ["dead_time"]
+    assert r.steps[0].params["theta_s"] == pytest.approx(0.03, rel=0.2)
+    assert r.final.rmse <= 0.5 * r.baseline.rmse
+
+
+def test_cli_reconcile_json_and_report(tmp_path, capsys):
+    data = tmp_path / "lag.csv"
+    assert main(["simulate", "valve", "--test", "isa-steps", "--preset", "low", "--vp-lag", "0",
+                 "--hide", "actuator_lag=0.05", "--seed", "5", "--out", str(data)]) == 0
+    js, rep = tmp_path / "out.json", tmp_path / "out.html"
+    assert main(["reconcile", str(data), "--json", str(js), "--report", str(rep)]) == 0
+    doc = json.loads(js.read_text())
+    for key in ("baseline", "steps", "effects", "final_rmse_m", "noise_floor_m"):
+        assert key in doc
+    assert doc["effects"][:1] == ["actuator_lag"]
+    assert doc["steps"][0]["params"]["tau_s"] == pytest.approx(0.05, rel=0.2)
+    assert doc["final_rmse_m"] <= 0.5 * doc["baseline"]["rmse_m"]
+    assert "evidence" in doc["steps"][0] and "rmse_m" in doc["baseline"]
+    html = rep.read_text()
+    assert html.count("data:image/png;base64,") >= 2 and "actuator_lag" in html
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "valve", "--test", "sine", "--preset", "low", "--hide", "bogus", "--out", str(out)]) == 2
+    assert "unknown effect 'bogus'" in capsys.readouterr().err
+    assert main(["reconcile", str(tmp_path / "missing.csv")]) == 2
+    assert "cannot open" in capsys.readouterr().err

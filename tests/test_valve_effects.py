@@ -1,0 +1,102 @@
+"""The extended Karnopp valve (models/valve_effects.py): each effect checked against an independent
+computation or the planted truth, never against a run of the code under test."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from models.errors import ModelConfigError
+from models.karnopp import PRESETS, simulate
+from models.valve_effects import (
+    EffectValve,
+    actuator_pressure,
+    hidden_record,
+    hide_effects,
+    parse_hide,
+    simulate_effects,
+    transmitter,
+)
+from models.valve_tests import sine
+
+
+def test_no_effect_agrees_with_the_paper_simulator():
+    # models.karnopp.simulate (issue 7, a separate implementation of eq. 1-2): same valve, same
+    # smooth pressure; the sub-step event placement may move the stem by at most a few µm
+    p = PRESETS["low"].replace(tau_p=0.0)
+    pc = actuator_pressure(sine().p_cmd, 1e-3, 1.0)
+    ref = simulate(p, pc, 1e-3)
+    got = simulate_effects(EffectValve.from_karnopp(p), pc, 1e-3)
+    assert np.max(np.abs(got.x - ref.x)) < 5e-6
+    assert np.ptp(ref.x) > 0.01  # the test moves the stem
+
+
+def test_dead_time_and_lag_are_exact_linear_operations():
+    dt = 1e-3
+    p = np.r_[np.zeros(100), np.ones(400)]
+    d = actuator_pressure(p, dt, theta=0.0305)  # 30.5 samples: linear interpolation between samples
+    assert d[129] == 0.0 and d[130] == pytest.approx(0.5) and d[131] == 1.0
+    lag = actuator_pressure(p, dt, tau=0.05)
+    t = dt * (np.arange(500) - 99)  # the step is applied at sample 100, held over each step
+    np.testing.assert_allclose(lag[100:], 1 - np.exp(-t[100:] / 0.05), rtol=1e-12)
+
+
+def test_deadband_reading_stays_put_until_the_stem_moves_half_the_width_past_it():
+    s = np.r_[np.linspace(0, 1, 11), np.linspace(1, 0, 11)[1:]]
+    y = transmitter(s, 0.4)
+    # going up the reading trails by d/2 = 0.2 once dragged; after the reversal at 1.0 it stays at
+    # 0.8 until the stem is below 0.6
+    assert y[10] == pytest.approx(0.8)
+    down = y[11:]
+    stem = s[11:]
+    assert np.all(down[stem >= 0.6] == pytest.approx(0.8))
+    np.testing.assert_allclose(down[stem < 0.6 - 1e-12], stem[stem < 0.6 - 1e-12] + 0.2)
+
+
+def test_slip_jump_needs_fs_to_break_away_and_stribeck_falls_to_fc():
+    base = EffectValve(k=2e5, fc=150.0, fv=5000.0, sa=0.0445, dv=1e-4)
+    dt = 1e-3
+    # a slow force ramp from rest: breakaway when S_a·p − k·x0 reaches F_s (eq. 2, third line)
+    p = np.linspace(0.0, 20000.0, 2001)
+    for fs in (150.0, 200.0):
+        sim = simulate_effects(base.replace(fs=fs), p, dt, x0_meas=0.0)
+        first = int(np.argmax(sim.x != sim.x[0]))
+        f_break = 0.0445 * p[first]
+        assert fs <= f_break <= fs + 0.0445 * (p[1] - p[0]) * 1.01
+    # Stribeck: at steady sliding speed v the friction is Fc + (Fs − Fc)·exp(−(v/vs)²); a constant
+    # force ramp rate R makes the stem slide at v = R/k and lag the static line by F(v)/k + Fv·v/k
+    R = 2000.0  # N/s
+    t = np.arange(0, 4.0, dt)
+    pr = (200.0 + R * t) / 0.0445
+    v_ss = R / 2e5
+    for vs in (0.02, 0.05):  # slope of the Stribeck curve below F_v: steady sliding (no stick-slip)
+        val = base.replace(fs=250.0, vs=vs)
+        x = simulate_effects(val, pr, dt, x0_meas=0.0).x
+        lagf = 0.0445 * pr[-1] - 2e5 * x[-1]
+        expect = 150.0 + 100.0 * math.exp(-((v_ss / vs) ** 2)) + 5000.0 * v_ss
+        assert lagf == pytest.approx(expect, rel=0.01)
+
+
+def test_hide_and_parse():
+    base = EffectValve.from_karnopp(PRESETS["low"])
+    assert parse_hide("deadband") == ("deadband", (0.5e-3,))
+    assert parse_hide("stribeck=1.5") == ("stribeck", (1.5, 3e-3))
+    v = hide_effects(base, dict([parse_hide("slip_jump=1.3"), parse_hide("dead_time=0.05")]))
+    assert v.fs == pytest.approx(1.3 * base.fc) and v.theta == 0.05
+    assert v.effects == ("slip_jump", "dead_time")
+    for bad in ("nope", "slip_jump=0.9", "deadband=-1", "dead_time=x", "stribeck=1.2:1:3"):
+        with pytest.raises(ModelConfigError):
+            parse_hide(bad)
+    with pytest.raises(ModelConfigError):
+        hide_effects(base, {"slip_jump": (1.2,), "stribeck": (1.2, 1e-3)})
+    with pytest.raises(ModelConfigError):
+        EffectValve(k=1.0, fc=10.0, fv=0.0, fs=5.0)
+
+
+def test_hidden_record_noise_and_truth():
+    rec = hidden_record(PRESETS["high"], "isa-steps", {"deadband": (1e-3,)}, noise_x=2e-5, noise_p=100.0, seed=4)
+    assert np.std(rec.x - rec.x_true) == pytest.approx(2e-5, rel=0.05)
+    assert np.std(rec.p - rec.p_true) == pytest.approx(100.0, rel=0.05)
+    assert rec.valve.deadband == 1e-3
