@@ -86,3 +86,38 @@ def test_gate_decides_on_band_candidates_for_irregular_windows():
     results = [oscillation_gate(x, fs=1.0) for x in windows().values()]
     assert any(g.band_hz is not None for g in results)
     assert any(g.band_hz is None and g.oscillating for g in results)
+
+
+def reference_evaluate(xk, yk, coefficients, counts, t):
+    """The spline evaluation one repeat per coefficient (before the five rows were repeated at once)."""
+    s, c2, c3 = coefficients
+    u = t - np.repeat(xk[:-1], counts)
+    y = np.repeat(s[:-1], counts) * u + np.repeat(yk[:-1], counts)
+    y += np.repeat(c2, counts) * (u * u)
+    y += np.repeat(c3, counts) * (u * u * u)
+    return y
+
+
+@pytest.mark.parametrize("name", ["sine", "square + ramp", "two tones + noise", "white noise"])
+def test_emd_still_equals_stock_pyemd_bit_for_bit(name):
+    from PyEMD import EMD
+
+    from pipeline.emd import EMDConfig, emd
+
+    x = detrend_linear(windows()[name])
+    imfs, _ = emd(x, config=EMDConfig())
+    stock = EMD(FIXE=4)
+    stock.emd(x, max_imf=3)
+    ref, _ = stock.get_imfs_and_residue()
+    assert np.array_equal(imfs, ref)
+
+
+def test_spline_evaluation_equals_one_repeat_per_coefficient():
+    from pipeline.emd import _evaluate, _not_a_knot_coefficients
+
+    xk = np.cumsum(RNG.integers(1, 30, 200)).astype(float) - 5.0
+    yk = RNG.standard_normal(200)
+    t = np.arange(0.0, xk[-1] + 1)
+    coefficients = _not_a_knot_coefficients(xk, yk, (xk.size,))
+    counts = np.diff(np.concatenate(([0], np.searchsorted(t, xk[1:-1]), [t.size])))
+    assert np.array_equal(_evaluate(xk, yk, coefficients, counts, t), reference_evaluate(xk, yk, coefficients, counts, t))
