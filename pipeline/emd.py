@@ -82,20 +82,20 @@ def _not_a_knot_coefficients(xk: np.ndarray, yk: np.ndarray, ends: tuple[int, ..
 def _evaluate(xk, yk, coefficients, counts, t):
     """Evaluate spline segments at ``t``: ``counts[j]`` consecutive points in segment ``j``."""
     s, c2, c3 = coefficients
-    u = np.repeat(xk[:-1], counts)
+    # the segment's knot and coefficients at every point: one repeat of the five rows
+    rows = np.empty((5, c2.size))
+    rows[0], rows[1], rows[2], rows[3], rows[4] = xk[:-1], s[:-1], yk[:-1], c2, c3
+    u, y, y0, term2, term3 = np.repeat(rows, counts, axis=1)
     np.subtract(t, u, out=u)
     # y + s u + c2 u^2 + c3 u^3 summed in the order of scipy's PPoly evaluation (same rounding)
-    y = np.repeat(s[:-1], counts)
     y *= u
-    y += np.repeat(yk[:-1], counts)
+    y += y0
     u2 = u * u
-    term = np.repeat(c2, counts)
-    term *= u2
-    y += term
+    term2 *= u2
+    y += term2
     u2 *= u
-    term = np.repeat(c3, counts)
-    term *= u2
-    y += term
+    term3 *= u2
+    y += term3
     return y
 
 

@@ -36,6 +36,7 @@ Choices the method leaves open, documented here:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import fft, signal
@@ -121,14 +122,26 @@ def acf(x: np.ndarray, *, max_lag: int | None = None) -> np.ndarray:
     return r / r[0] if r[0] > 0 else np.zeros_like(r)
 
 
+@lru_cache(maxsize=16)
+def _centred_time(n: int) -> tuple[np.ndarray, float]:
+    """Sample times centred on the window's middle and their sum of squares (read-only, cached)."""
+    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
+    t.flags.writeable = False
+    return t, float(np.dot(t, t))
+
+
 def detrend_linear(x: np.ndarray) -> np.ndarray:
     """``x`` minus its least-squares straight line (closed form; same as ``scipy.signal.detrend``)."""
     n = x.size
     if n < 2:
         return x - x.mean() if n else x.copy()
-    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
-    slope = np.dot(t, x) / np.dot(t, t)
-    return x - x.mean() - slope * t
+    t, tt = _centred_time(n)
+    slope = np.dot(t, x) / tt
+    if x.dtype != np.float64:
+        return x - x.mean() - slope * t
+    y = x - x.mean()
+    y -= slope * t
+    return y
 
 
 def robust_amplitude(y: np.ndarray) -> float:
@@ -160,21 +173,42 @@ def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[fl
     sd = float(periods.std(ddof=1))
     reg = np.inf if sd == 0 else tp / (3.0 * sd)
     peaks = []
+    top = min(int(np.ceil(3 * tp + tp / 4)) + 1, r.size)
+    corrected = r[:top] / (1.0 - np.arange(top) / n_total)  # the biased estimator's taper undone
     for k in (1, 2, 3):
         lo, hi = max(int(np.floor(k * tp - tp / 4)), 1), min(int(np.ceil(k * tp + tp / 4)) + 1, r.size)
         if hi > lo:
-            lags = np.arange(lo, hi)
-            peaks.append(float(np.max(r[lo:hi] / (1.0 - lags / n_total))))
+            peaks.append(float(corrected[lo:hi].max()))
     persistence = min(peaks) if peaks else np.nan
     return tp, reg, int(periods.size), persistence
 
 
-def acf_standard_error(n: int, band: tuple[float, float] | None) -> float:
-    """Standard error of the ACF of white noise after the gate's band-pass (Bartlett's formula)."""
+@lru_cache(maxsize=16)
+def _frequencies(n: int) -> np.ndarray:
+    """``rfftfreq(n)`` (read-only, cached)."""
+    f = fft.rfftfreq(n)
+    f.flags.writeable = False
+    return f
+
+
+@lru_cache(maxsize=16)
+def _hann(n: int) -> np.ndarray:
+    """``np.hanning(n)`` (read-only, cached)."""
+    w = np.hanning(n)
+    w.flags.writeable = False
+    return w
+
+
+def acf_standard_error(n: int, band: tuple[float, float] | None, *, weights: np.ndarray | None = None) -> float:
+    """Standard error of the ACF of white noise after the gate's band-pass (Bartlett's formula).
+
+    ``weights``: the band's gain :func:`pipeline.filters.band_weights` at ``rfftfreq(n)`` if
+    already computed."""
     if band is None:
         return 1.0 / np.sqrt(n)
-    f = fft.rfftfreq(n)
-    g = band_weights(f, f_lo=band[0], f_hi=band[1]) ** 2  # power response
+    if weights is None:
+        weights = band_weights(_frequencies(n), f_lo=band[0], f_hi=band[1])
+    g = weights**2  # power response
     rho = fft.irfft(g, n)
     if rho[0] <= 0:
         return 1.0
@@ -185,8 +219,8 @@ def acf_standard_error(n: int, band: tuple[float, float] | None) -> float:
 def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_period: float):
     """Pass bands ``[f0/2, 2 f0]`` (cycles/sample) around the strongest spectral peaks."""
     n = x.size
-    spec = np.abs(fft.rfft(x * np.hanning(n))) ** 2
-    f = fft.rfftfreq(n)
+    spec = np.abs(fft.rfft(x * _hann(n))) ** 2
+    f = _frequencies(n)
     smooth = signal.savgol_filter(spec, 5, 2) if spec.size > 7 else spec
     peaks, props = signal.find_peaks(smooth, prominence=0)
     ok = (f[peaks] > 1.0 / max_period) & (f[peaks] < 1.0 / min_period)
@@ -195,12 +229,19 @@ def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_pe
     return [(f[p] / 2.0, min(2.0 * f[p], 0.5)) for p in peaks[order]]
 
 
-def _bandpass(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+def _bandpass(x: np.ndarray, lo: float, hi: float, *, spectrum: np.ndarray | None = None,
+              weights: np.ndarray | None = None) -> np.ndarray:
     """Zero-phase band-pass in the frequency domain (Thornhill et al. 2003, §3): squared
     second-order Butterworth edges, not a brick wall, whose ACF tails (decaying only as
-    ``1/lag``) would make band-passed noise look like a sustained oscillation."""
-    f = fft.rfftfreq(x.size)
-    return fft.irfft(fft.rfft(x) * band_weights(f, f_lo=lo, f_hi=hi), x.size)
+    ``1/lag``) would make band-passed noise look like a sustained oscillation.
+
+    ``spectrum`` (``rfft(x)``) and ``weights`` (the band's gain at ``rfftfreq(x.size)``) may be
+    passed when already computed: several bands of one window share the spectrum."""
+    if spectrum is None:
+        spectrum = fft.rfft(x)
+    if weights is None:
+        weights = band_weights(_frequencies(x.size), f_lo=lo, f_hi=hi)
+    return fft.irfft(spectrum * weights, x.size)
 
 
 def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfig()) -> GateResult:
@@ -227,7 +268,8 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
     nan = float("nan")
     y = detrend_linear(x)
     amplitude = robust_amplitude(y)
-    if n < 4 * config.min_period_samples or not np.any(np.abs(y) > 1e-12 * max(1.0, np.abs(x).max())):
+    # max |y| > tol is any(|y| > tol); max |x| is max(x.max(), -x.min())
+    if n < 4 * config.min_period_samples or not np.abs(y).max() > 1e-12 * max(1.0, x.max(), -x.min()):
         why = "window too short" if n < 4 * config.min_period_samples else "signal is constant after detrending"
         return GateResult(False, nan, amplitude, nan, nan, 0, None, why)
 
@@ -240,12 +282,19 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
             y, max_bands=config.max_bands, min_period=config.min_period_samples, max_period=max_period / 2
         )
 
+    spectrum = None  # rfft(y), shared by the band-passed candidates
     for band in candidates():
-        yy = y if band is None else _bandpass(y, *band)
-        tp, reg, nper, pers = regularity(acf(yy, max_lag=max_lag), n_total=n, min_periods=config.min_periods)
+        if band is None:
+            yy = weights = None
+        else:
+            spectrum = fft.rfft(y) if spectrum is None else spectrum
+            weights = band_weights(_frequencies(n), f_lo=band[0], f_hi=band[1])
+            yy = _bandpass(y, *band, spectrum=spectrum, weights=weights)
+        tp, reg, nper, pers = regularity(acf(y if yy is None else yy, max_lag=max_lag), n_total=n,
+                                         min_periods=config.min_periods)
         if not np.isfinite(tp):
             continue
-        need = max(config.min_persistence, config.acf_z * acf_standard_error(n, band))
+        need = max(config.min_persistence, config.acf_z * acf_standard_error(n, band, weights=weights))
         passed = (
             reg > config.min_regularity
             and pers >= need

@@ -12,6 +12,7 @@ same windows in the same run, for a ratio.
 Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/bench_robust.py``
 """
 
+import os
 import time
 
 import numpy as np
@@ -67,7 +68,7 @@ def test_robust_cost_per_oscillating_window():
         wp, cp, _ = timed(kw, paper)
         rows.append((name, wr, cr, wp, cp, v, "op" in kw))
     osc = [r for r in rows if r[5] != "not_oscillating"]
-    print(f"\n[bench_robust] {machine_note()}")
+    print(f"\n[bench_robust] {machine_note()}, load average {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
     print(f"{'window (4096 samples)':44s} {'robust wall':>11s} {'cpu':>6s} {'paper wall':>10s} {'cpu':>6s}  verdict")
     for name, wr, cr, wp, cp, v, _ in rows:
         print(f"{name:44s} {1e3 * wr:9.1f}ms {1e3 * cr:5.1f} {1e3 * wp:8.1f}ms {1e3 * cp:5.1f}  {v}")
