@@ -9,7 +9,8 @@ from the same public functions and the same configuration, so the arrays agree w
 * EMD with the configured budget (Aftab et al. 2016, eq. 1–2) and the IMFs kept by the
   ``lambda > threshold`` rule (eq. 7–8);
 * the *components* whose DNL makes the verdict: for the ``paper`` method the kept IMFs, for the
-  ``robust`` method the band-passed oscillation ``[f0/2, H f0]`` of :mod:`pipeline.robust`;
+  ``robust`` method the band-passed oscillation ``[f0/2, (H + 1/2) f0]`` of :mod:`pipeline.robust`
+  (its DNL is that of the phase-locked mean wave fitted to the band, the verdict's figure);
 * for every component its instantaneous frequency ``IF`` (eq. 3–5), the full-wave zero-crossing
   frequency ``IF_z`` and amplitude ``a_z`` (eq. 10–11) and its DNL (eq. 11).  Intra-wave frequency
   modulation -- ``IF`` swinging around ``IF_z`` within each wave -- is what a sticking valve shows.
@@ -31,7 +32,8 @@ from .errors import SignalError
 from .frequency import instantaneous_frequency, zero_crossing_references, zero_crossings
 from .gate import detrend_linear, oscillation_gate
 from .pruning import significant_imfs
-from .robust import band_weights
+from .filters import band_weights
+from .robust import _refine_f0, mean_wave, wave_dnl
 
 __all__ = ["WindowDetails", "explain_window"]
 
@@ -50,7 +52,8 @@ class WindowDetails:
     inst_freq, if_z, a_z : ``(m, N)`` IF (Hz, eq. 5), IF_z (Hz) and a_z of every component;
         NaN for a component with fewer than three zero crossings (``a_z`` also outside the
         first and last crossing).
-    dnl : DNL of every component (eq. 11).
+    dnl : DNL of every component (eq. 11); robust method: the DNL of the phase-locked mean wave
+        (:func:`pipeline.robust.wave_dnl`), as in the verdict.
     band_hz : the robust band ``(f_lo, f_hi)``; ``None`` for the paper method.
     period_s : the oscillation period used (from the gate or given).
     n_filled : missing samples filled by interpolation.
@@ -107,13 +110,18 @@ def explain_window(x: np.ndarray, *, fs: float, config: DiagnosisConfig = Diagno
     if config.method == "robust":
         if not np.isfinite(period_s):
             raise SignalError("window cannot be explained by the robust method: it does not oscillate (no period)")
-        # the oscillation component of pipeline.robust.robust_dnl_test (step 1 of its docstring)
+        # what pipeline.robust.robust_dnl_test fits (steps 1-3 of its docstring): the refined f0,
+        # the oscillation band [f0/2, (H + 1/2) f0] (drawn, with its IF and IF_z) and the DNL of
+        # the phase-locked mean wave (the verdict's figure for the analysed signal)
+        h = config.robust.n_harmonics
         f = fft.rfftfreq(y.size, d=1.0 / fs)
-        f0 = 1.0 / period_s
-        band = (f0 / 2.0, min(config.robust.n_harmonics * f0, 0.5 * fs))
-        components = fft.irfft(fft.rfft(y) * band_weights(f, f_lo=band[0], f_hi=band[1]), y.size)[None, :]
+        spec = fft.rfft(y)
+        f0 = _refine_f0(spec, f, 1.0 / period_s)
+        band = (f0 / 2.0, min((h + 0.5) * f0, 0.5 * fs))
+        components = fft.irfft(spec * band_weights(f, f_lo=band[0], f_hi=band[1], order=4), y.size)[None, :]
         names: tuple[str, ...] = ("band",)
-        trim = 1  # robust_dnl_test uses imf_dnl's default trim
+        trim = 1
+        wave = float(wave_dnl(mean_wave(spec, f, y.size, f0=f0, n_harmonics=h)[0]))
     else:
         components, names, trim = kept, tuple(f"imf{n}" for n in numbers), config.end_trim_waves
     m, n = components.shape
@@ -128,5 +136,7 @@ def explain_window(x: np.ndarray, *, fs: float, config: DiagnosisConfig = Diagno
         if zc.size >= 3:
             ifz[i], az[i] = zero_crossing_references(c, zc, fs=fs)
         dnl.append(imf_dnl(c, fs=fs, end_trim_waves=trim, freq=inst[i]).dnl)
+    if config.method == "robust":
+        dnl = [wave]
     return WindowDetails(config.method, kept, numbers, names, components, inst, ifz, az, tuple(dnl), band,
                          float(period_s), n_filled)
