@@ -226,7 +226,7 @@ def dashboard_blueprint(loop_id: str | None, *, window_s: float | None = None):
                            time_ranges=ranges, axis_x=recent),
         rrb.TimeSeriesView(origin=f"{base}/if", name=f"{loop_id}: IF vs IF_z (Hz)", time_ranges=ranges, axis_x=recent),
         rrb.TextLogView(origin=f"{base}/alerts", name=f"{loop_id}: alerts"),
-        row_shares=[3, 3, 2, 2, 1],
+        row_shares=[3, 3, 2, 2, 2],
     )
     return rrb.Blueprint(rrb.Horizontal(overview, drill, column_shares=[2, 3]), time_panel, collapse_panels=True)
 

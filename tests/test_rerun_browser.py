@@ -45,6 +45,7 @@ def test_web_viewer_renders_the_demo_recording(tmp_path):
     grpc, web = loopback_port(63), loopback_port(64)
     viewer = start_web_viewer(rrd, web_port=web, grpc_port=grpc)
     out = ROOT / "docs" / "dashboard.png" if os.environ.get("LOOPWATCH_UPDATE_SCREENSHOT") else tmp_path / "shot.png"
+    out.parent.mkdir(parents=True, exist_ok=True)
     settle = bool(os.environ.get("LOOPWATCH_UPDATE_SCREENSHOT"))
     last = {"counts": None, "pixels": None}
 
