@@ -41,6 +41,7 @@ def test_clean_record_names_no_effect():
     assert set(r.regime_share) <= set(REGIMES) and sum(r.regime_share.values()) == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 def test_hidden_dead_time_is_named_and_the_gap_shrinks():
     r = _run({"dead_time": (0.03,)}, seed=2)
     assert r.effects[:1] == ["dead_time"]
