@@ -37,7 +37,7 @@ import numpy as np
 from pipeline.diagnosis import DiagnosisConfig, WindowDiagnosis
 
 from .errors import AdapterError
-from .payloads import SIGNALS
+from .payloads import SIGNALS, json_number
 
 __all__ = [
     "SCHEMAS",
@@ -216,13 +216,6 @@ def decode_f64(s: str, n: int | None = None, *, dtype: str = "<f8", what: str = 
     return a.astype(np.float64 if dtype == "<f8" else np.int64)
 
 
-def _num(v: Any) -> Any:
-    if v is None:
-        return None
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
 def to_json(obj: Any) -> Any:
     """Dataclasses, tuples, numpy scalars -> JSON values; non-finite floats -> ``null``."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
@@ -236,7 +229,7 @@ def to_json(obj: Any) -> Any:
     if isinstance(obj, (int, np.integer)):
         return int(obj)
     if isinstance(obj, (float, np.floating)):
-        return _num(obj)
+        return json_number(obj)
     return obj
 
 
@@ -305,7 +298,7 @@ def encode_result(loop_id: str, seq: int, end_ns: int, result: Any) -> dict:
     """The ``loopwatch.WindowResult`` message (``result``: diagnosis, amplitude, period_s, n_missing)."""
     msg = {"timestamp": _stamp(end_ns), "loop": loop_id, "seq": int(seq)}
     msg.update(to_json(result.diagnosis))
-    msg.update(amplitude=_num(result.amplitude), period_s=_num(result.period_s), n_missing=int(result.n_missing))
+    msg.update(amplitude=json_number(result.amplitude), period_s=json_number(result.period_s), n_missing=int(result.n_missing))
     return msg
 
 

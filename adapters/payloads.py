@@ -30,6 +30,7 @@ import numpy as np
 from .errors import AdapterError
 
 __all__ = [
+    "json_number",
     "SIGNALS",
     "REJECT_REASONS",
     "BINARY_ENCODING",
@@ -94,6 +95,14 @@ class Batch:
         if self.dt is None:
             return np.full(self.v.size, self.t0)
         return self.t0 + self.offsets * self.dt
+
+
+def json_number(v: float | None) -> float | None:
+    """A figure as JSON can hold it: JSON has no NaN or infinity, so those (and ``None``) are ``null``."""
+    if v is None:
+        return None
+    v = float(v)
+    return v if math.isfinite(v) else None
 
 
 def parse_key(key: str, prefix: str) -> tuple[str, str]:

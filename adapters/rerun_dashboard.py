@@ -35,9 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-import re
 import subprocess
-import sys
 import threading
 import time
 import urllib.parse

@@ -5,13 +5,13 @@ The use case behind ``loopwatch analyze``; pure apart from what the caller passe
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from adapters.loop_csv import LoopData
+from adapters.payloads import json_number
 from pipeline.diagnosis import DiagnosisConfig, WindowDiagnosis, diagnose_window
 from pipeline.record import overall_verdict, window_starts
 
@@ -37,19 +37,19 @@ class WindowReport:
             "start_s": self.start_s,
             "end_s": self.end_s,
             "oscillating": bool(g is not None and g.oscillating and d.verdict != "not_oscillating"),
-            "period_s": _num(g.period_s) if g else None,
-            "regularity": _num(g.regularity) if g else None,
+            "period_s": json_number(g.period_s) if g else None,
+            "regularity": json_number(g.regularity) if g else None,
             "imfs_kept": list(d.imfs_kept),
-            "dnl": [_num(v) for v in d.dnl],
-            "tdnl": _num(d.tdnl),
+            "dnl": [json_number(v) for v in d.dnl],
+            "tdnl": json_number(d.tdnl),
             "verdict": d.verdict,
             "reason": d.reason,
             "method": d.method,
-            "p_value": _num(d.robust.p_value) if d.robust else None,
-            "dnl_threshold": _num(d.robust.threshold) if d.robust else None,
-            "amplitude": _num(g.amplitude) if g else None,
+            "p_value": json_number(d.robust.p_value) if d.robust else None,
+            "dnl_threshold": json_number(d.robust.threshold) if d.robust else None,
+            "amplitude": json_number(g.amplitude) if g else None,
             "guards": list(d.guards),
-            "harmonic_ratio": _num(d.robust.harmonic_ratio) if d.robust else None,
+            "harmonic_ratio": json_number(d.robust.harmonic_ratio) if d.robust else None,
             "stick_slip_episodes": d.stick_slip.episodes if d.stick_slip else None,
         }
 
@@ -78,17 +78,12 @@ class LoopReport:
             "n_samples": self.n_samples,
             "sample_time_s": self.sample_time_s,
             "verdict": self.verdict,
-            "tdnl": _num(self.tdnl),
+            "tdnl": json_number(self.tdnl),
             "reason": self.reason,
             "duplicate_rows_dropped": self.n_duplicates,
             "stick_slip_windows": self.stick_slip_windows,
             "windows": [w.to_json() for w in self.windows],
         }
-
-
-def _num(v: float) -> float | None:
-    """JSON has no NaN: missing figures are ``null``."""
-    return None if v is None or not math.isfinite(v) else float(v)
 
 
 def _has_data(v: np.ndarray | None) -> bool:

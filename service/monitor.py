@@ -31,7 +31,7 @@ from typing import Any, Callable, Literal
 
 import numpy as np
 
-from adapters.payloads import SIGNALS, PayloadError, decode_payload, parse_key
+from adapters.payloads import SIGNALS, PayloadError, decode_payload, json_number, parse_key
 from pipeline.diagnosis import DiagnosisConfig, WindowDiagnosis, diagnose_window
 
 from .errors import ServiceError
@@ -211,10 +211,6 @@ def _hold(v: np.ndarray) -> np.ndarray:
     return v[idx]
 
 
-def _finite_or_none(v: float) -> float | None:
-    return float(v) if v is not None and math.isfinite(v) else None
-
-
 @dataclass(frozen=True)
 class Alert:
     """A state transition of a loop's alert: ``raised`` or ``cleared``; JSON via :meth:`to_json`."""
@@ -239,11 +235,11 @@ class Alert:
             "loop": self.loop_id,
             "state": self.state,
             "verdict": self.verdict,
-            "tdnl": _finite_or_none(self.tdnl),
-            "dnl": [_finite_or_none(v) for v in self.dnl],
+            "tdnl": json_number(self.tdnl),
+            "dnl": [json_number(v) for v in self.dnl],
             "threshold": self.threshold,
-            "period_s": _finite_or_none(self.period_s),
-            "amplitude": _finite_or_none(self.amplitude),
+            "period_s": json_number(self.period_s),
+            "amplitude": json_number(self.amplitude),
             "signal": self.signal,
             "window": {"start_t": self.window_start_t, "end_t": self.window_end_t, "seq": self.window_seq},
             "consecutive_windows": self.consecutive,
@@ -651,7 +647,7 @@ class MonitorCore:
             return {
                 "state": "alert" if st.tracker.active else "ok",
                 "last_verdict": st.last_verdict,
-                "last_tdnl": _finite_or_none(st.last_tdnl),
+                "last_tdnl": json_number(st.last_tdnl),
                 "last_reason": st.last_reason,
                 "last_window": None if st.last_window is None else
                 {"start_t": st.last_window[0], "end_t": st.last_window[1]},

@@ -22,6 +22,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from adapters.payloads import json_number
+
 from ..errors import UsageError
 
 
@@ -72,14 +74,11 @@ def _progress(console: Console) -> Progress:
                     console=console, transient=True)
 
 
-def _num(v: float) -> float | None:
-    return float(v) if math.isfinite(v) else None
-
-
 def _figures(result) -> dict:
     d = result.diagnosis
-    return {"verdict": d.verdict, "tdnl": _num(d.tdnl), "dnl": [_num(v) for v in d.dnl], "imfs_kept": list(d.imfs_kept),
-            "period_s": _num(result.period_s), "reason": d.reason}
+    return {"verdict": d.verdict, "tdnl": json_number(d.tdnl), "dnl": [json_number(v) for v in d.dnl],
+            "imfs_kept": list(d.imfs_kept),
+            "period_s": json_number(result.period_s), "reason": d.reason}
 
 
 def run(args: argparse.Namespace) -> int:
