@@ -276,8 +276,6 @@ def _usable_op(op: np.ndarray | None, x: np.ndarray, config: DiagnosisConfig) ->
 
 def _with_stick_slip(diag: WindowDiagnosis, pv, op, sp, config: DiagnosisConfig) -> WindowDiagnosis:
     """Add the stuck-valve episodes (:mod:`pipeline.stickslip`) to a non-oscillating window."""
-    from dataclasses import replace
-
     series = []
     for v in (pv, op, sp):
         v = np.asarray(v, dtype=np.float64)

@@ -33,7 +33,7 @@ from .frequency import instantaneous_frequency, zero_crossing_references, zero_c
 from .gate import detrend_linear, oscillation_gate
 from .pruning import significant_imfs
 from .filters import band_weights
-from .robust import _refine_f0, mean_wave, wave_dnl
+from .robust import refine_f0, mean_wave, wave_dnl
 
 __all__ = ["WindowDetails", "explain_window"]
 
@@ -116,7 +116,7 @@ def explain_window(x: np.ndarray, *, fs: float, config: DiagnosisConfig = Diagno
         h = config.robust.n_harmonics
         f = fft.rfftfreq(y.size, d=1.0 / fs)
         spec = fft.rfft(y)
-        f0 = _refine_f0(spec, f, 1.0 / period_s)
+        f0 = refine_f0(spec, f, 1.0 / period_s)
         band = (f0 / 2.0, min((h + 0.5) * f0, 0.5 * fs))
         components = fft.irfft(spec * band_weights(f, f_lo=band[0], f_hi=band[1], order=4), y.size)[None, :]
         names: tuple[str, ...] = ("band",)

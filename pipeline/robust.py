@@ -54,7 +54,7 @@ from .errors import PipelineConfigError
 from .filters import band_weights
 from .surrogates import harmonic_free_amplitudes, random_phase_spectra
 
-__all__ = ["RobustConfig", "RobustResult", "band_weights", "robust_dnl_test", "mean_wave", "wave_dnl"]
+__all__ = ["RobustConfig", "RobustResult", "band_weights", "robust_dnl_test", "refine_f0", "mean_wave", "wave_dnl"]
 
 #: phases per period at which the mean wave's DNL is evaluated, periods synthesised for the fallback
 _WAVE_SAMPLES, _WAVE_PERIODS = 64, 4
@@ -118,7 +118,7 @@ class RobustResult:
     signal: str = "primary"
 
 
-def _refine_f0(spec: np.ndarray, f: np.ndarray, f0: float) -> float:
+def refine_f0(spec: np.ndarray, f: np.ndarray, f0: float) -> float:
     """Frequency of the largest periodogram bin within ``[f0/1.5, 1.5 f0]`` (parabolic interpolation)."""
     sel = np.flatnonzero((f > f0 / 1.5) & (f < 1.5 * f0))
     if sel.size < 3:
@@ -246,7 +246,7 @@ def _signal_dnls(y: np.ndarray, *, fs: float, f0_hint: float, config: RobustConf
     h = config.n_harmonics
     f = fft.rfftfreq(n, d=1.0 / fs)
     spec = fft.rfft(y)
-    f0 = _refine_f0(spec, f, f0_hint)
+    f0 = refine_f0(spec, f, f0_hint)
     m = _band_bins(f, f0=f0, n_harmonics=h)
     amplitudes = harmonic_free_amplitudes(spec[:m], f[:m], f0=f0, n_harmonics=h, rng=rng, count=config.n_surrogates)
     spectra = np.concatenate([spec[None, :m], random_phase_spectra(amplitudes, n, rng, count=config.n_surrogates)])
