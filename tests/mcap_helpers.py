@@ -86,11 +86,15 @@ def make_loops(n: int = 6) -> tuple[list[PlantLoop], dict[str, np.ndarray]]:
 
 
 def record_plant(directory: Path, n_loops: int = 6, **recorder_kw) -> Recorded:
-    """Run the real :class:`Monitor` (one analysis thread) with an :class:`McapRecorder` on the plant."""
+    """Run the real :class:`Monitor` (one analysis thread) with an :class:`McapRecorder` on the plant.
+
+    Chunks are small (about one window each) and so written as they fill: what a cut or failed file
+    holds does not depend on how fast this machine feeds the plant relative to ``flush_s`` (on a
+    fast machine the whole plant would otherwise land in one chunk written at close)."""
     loops, times = make_loops(n_loops)
     core = MonitorCore(loop_config=loop_config(loops), raise_after=RAISE_AFTER, clear_after=CLEAR_AFTER)
     kw = dict(instance="test", run_config={"alerts": {"raise_after": RAISE_AFTER, "clear_after": CLEAR_AFTER}},
-              flush_s=0.2)
+              flush_s=0.2, chunk_size=16_384)
     kw.update(recorder_kw)
     recorder = McapRecorder(directory, **kw)
     alerts = _Alerts()

@@ -342,9 +342,7 @@ def test_unwritable_directory_degrades_recording_and_monitoring_continues(tmp_pa
 
 def test_full_disk_degrades_recording_and_monitoring_continues(tmp_path):
     """A real write failure: the monitor runs in a process whose file-size limit (RLIMIT_FSIZE)
-    is hit by the recording, so the kernel fails the write with EFBIG, as a full disk would fail it.
-    Small chunks (about one window each) are written as they fill, so what lies before the limit
-    does not depend on how fast the machine feeds the plant relative to the flush interval."""
+    is hit by the recording, so the kernel fails the write with EFBIG, as a full disk would fail it."""
     script = textwrap.dedent(f"""
         import json, resource, signal, sys
         from pathlib import Path
@@ -352,7 +350,7 @@ def test_full_disk_degrades_recording_and_monitoring_continues(tmp_path):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
         from tests.mcap_helpers import record_plant
-        got = record_plant(Path({str(tmp_path / 'rec')!r}), retry_s=600, chunk_size=16_384)
+        got = record_plant(Path({str(tmp_path / 'rec')!r}), retry_s=600)
         print(json.dumps({{"windows": got.monitor_windows, "alerts": len(got.alerts), "status": got.recorder_status}}))
     """)
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=240, cwd=ROOT)
