@@ -17,7 +17,7 @@ from pipeline.record import overall_verdict, window_starts
 
 from .errors import UsageError
 
-__all__ = ["SignalChoice", "WindowReport", "LoopReport", "analyze_loop", "DEFAULT_WINDOW"]
+__all__ = ["SignalChoice", "WindowReport", "LoopReport", "analyze_loop", "witnesses", "hold", "DEFAULT_WINDOW"]
 
 SignalChoice = Literal["auto", "pv", "op", "error"]
 
@@ -90,6 +90,31 @@ def _has_data(v: np.ndarray | None) -> bool:
     return v is not None and bool(np.isfinite(v).any())
 
 
+def hold(v: np.ndarray) -> np.ndarray:
+    """A signal often sent or logged on change only (the set point) held between its samples: each
+    NaN takes the last value before it, leading NaNs the first value of the window."""
+    ok = np.isfinite(v)
+    if not ok.any():
+        return v
+    idx = np.maximum.accumulate(np.where(ok, np.arange(v.size), -1))
+    idx[idx < 0] = int(np.argmax(ok))
+    return v[idx]
+
+
+def witnesses(name: str, *, op: np.ndarray | None, sp: np.ndarray | None) -> dict[str, np.ndarray]:
+    """The companion signals that go with the analysed series ``name`` to
+    :func:`pipeline.diagnosis.diagnose_window`: the OP (second witness of a non-linearity and
+    saturation guard) when the PV or the control error is analysed, and the set point held
+    between its samples (a change inside the window -> the control error) when the PV is.
+    The one rule for ``loopwatch analyze`` and the monitor."""
+    extra = {}
+    if name in ("pv", "error") and _has_data(op):
+        extra["op"] = op
+    if name == "pv" and _has_data(sp):
+        extra["sp"] = hold(sp)
+    return extra
+
+
 def select_signal(data: LoopData, choice: SignalChoice) -> tuple[str, np.ndarray]:
     """The series to analyse; ``auto`` takes PV, or OP when the record has no PV (e.g. ISDB)."""
     if choice == "auto":
@@ -130,11 +155,8 @@ def analyze_loop(
     for s in window_starts(n, window=window, hop=hop):
         sl = slice(s, s + window)
         mode = None if data.mode is None else data.mode[sl]
-        extra = {}
-        if name in ("pv", "error") and _has_data(data.op):
-            extra["op"] = data.op[sl]
-        if name == "pv" and data.sp is not None and _has_data(data.sp):
-            extra["sp"] = data.sp[sl]
+        extra = witnesses(name, op=None if data.op is None else data.op[sl],
+                          sp=None if data.sp is None else data.sp[sl])
         diag = diagnose_window(x[sl], fs=fs, config=config, mode=mode, **extra)
         reports.append(WindowReport(float(data.t[s]), float(data.t[min(s + window, n) - 1]), diag))
     verdict, tdnl_value, reason = overall_verdict([r.diagnosis for r in reports])

@@ -33,7 +33,9 @@ import numpy as np
 
 from adapters.payloads import SIGNALS, PayloadError, decode_payload, json_number, parse_key
 from pipeline.diagnosis import DiagnosisConfig, WindowDiagnosis, diagnose_window
+from pipeline.gate import detrend_linear, robust_amplitude
 
+from .analysis import witnesses
 from .errors import ServiceError
 from .ports import AlertSink, Clock, Closeable, SinkHealth, WindowSink
 
@@ -177,38 +179,23 @@ def analyze_window(window: WindowSamples) -> WindowResult:
     """Diagnose one window; a pure function of the window's samples and its analysis config.
 
     A window in which the loop is in manual (a finite ``mode`` sample other than 1) is
-    ``invalid``.  ``amplitude`` is half the 2nd-98th percentile range of the linearly detrended
-    series, ``period_s`` the oscillation gate's period (NaN when none).
+    ``invalid``.  ``amplitude`` and ``period_s`` are the oscillation gate's (half the 5-95 %
+    percentile range of the detrended analysed series; NaN period when none); a window the gate did
+    not see gets the same amplitude over its finite samples.
     """
     x = window.series()
     n_missing = int(np.count_nonzero(~np.isfinite(x)))
-    sig, signals = window.analysis.signal, window.signals
-    extra = {}
-    if sig in ("pv", "error") and "op" in signals:   # second witness, saturation guard
-        extra["op"] = signals["op"]
-    if sig == "pv" and np.isfinite(signals.get("sp", ())).any():   # a set-point change -> the control error
-        extra["sp"] = _hold(signals["sp"])
+    signals = window.signals
+    extra = witnesses(window.analysis.signal, op=signals.get("op"), sp=signals.get("sp"))
     diag = diagnose_window(x, fs=1.0 / window.sample_time_s, config=window.analysis.diagnosis,
                            mode=signals.get("mode"), **extra)
-    ok = np.isfinite(x)
-    amplitude = math.nan
-    if np.count_nonzero(ok) >= 8:
-        idx = np.flatnonzero(ok)
-        coef = np.polyfit(idx.astype(float), x[ok], 1)
-        resid = x[ok] - np.polyval(coef, idx)
-        lo, hi = np.percentile(resid, [2.0, 98.0])
-        amplitude = float((hi - lo) / 2.0)
-    period = diag.gate.period_s if diag.gate is not None else math.nan
-    return WindowResult(diag, amplitude, float(period), n_missing)
-
-
-def _hold(v: np.ndarray) -> np.ndarray:
-    """A signal often sent on change only (the set point) held between its samples: each NaN takes
-    the last value before it, leading NaNs the first value of the window."""
-    ok = np.isfinite(v)
-    idx = np.maximum.accumulate(np.where(ok, np.arange(v.size), -1))
-    idx[idx < 0] = int(np.argmax(ok))
-    return v[idx]
+    if diag.gate is not None:
+        amplitude, period = diag.gate.amplitude, diag.gate.period_s
+    else:   # not analysed (manual, too many gaps): the same figure over the samples there are
+        ok = np.isfinite(x)
+        amplitude = robust_amplitude(detrend_linear(x[ok])) if np.count_nonzero(ok) >= 8 else math.nan
+        period = math.nan
+    return WindowResult(diag, float(amplitude), float(period), n_missing)
 
 
 @dataclass(frozen=True)

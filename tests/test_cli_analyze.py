@@ -128,3 +128,33 @@ def test_irregular_time_goes_on_the_grid(tmp_path):
     data = read_loop_csv(path)
     assert data.sample_time_s == 2.0 and len(data) == 300
     assert np.isnan(data.pv[50]) and data.pv[10] == 10.0
+
+
+def test_set_point_logged_on_change_is_held_in_analyze(tmp_path):
+    """A historian export with the set point only where it changed (empty cells between): analyze
+    holds it, finds the step inside the window and analyses the control error, as the monitor does."""
+    n = 1024
+    t = np.arange(n, dtype=float)
+    sp = np.full(n, np.nan)
+    sp[0], sp[600] = 50.0, 55.0
+    held = np.where(t < 600, 50.0, 55.0)
+    pv = held + 2.0 * np.sin(2 * np.pi * t / 64.0)
+    op = 40.0 + 3.0 * np.cos(2 * np.pi * t / 64.0)
+    path = tmp_path / "sp_on_change.csv"
+    write_table(path, {"t": t, "sp": sp, "pv": pv, "op": op})
+    (w,) = analyze_loop(read_loop_csv(path), window=n).windows
+    assert "analysing the control error" in w.diagnosis.reason, w.diagnosis.reason
+    assert w.diagnosis.verdict == "linear"   # the planted sinusoid about a stepped set point
+
+
+def test_monitor_amplitude_is_the_gates_half_range_of_the_planted_sine():
+    """The alert's amplitude: half the 5-95 % range of the detrended series = A·sin(0.45π) for a sine
+    of amplitude A on a ramp (independent closed form), the same figure the gate reports."""
+    from service.monitor import AnalysisConfig, WindowSamples, analyze_window
+
+    n = 2048
+    t = np.arange(n, dtype=float)
+    pv = 3.0 * np.sin(2 * np.pi * t / 64.0) + 0.01 * t
+    r = analyze_window(WindowSamples("L", 0, 0, t, 1.0, {"pv": pv}, AnalysisConfig()))
+    assert r.amplitude == pytest.approx(3.0 * np.sin(0.45 * np.pi), rel=0.01)
+    assert r.period_s == pytest.approx(64.0, rel=0.02)

@@ -378,7 +378,7 @@ def test_status_selects_all_one_or_no_loop():
 
 
 def test_hold_carries_a_sent_on_change_signal_between_its_samples():
-    from service.monitor import _hold
+    from service.analysis import hold as _hold
 
     v = np.array([np.nan, np.nan, 2.0, np.nan, 3.0, np.nan])
     assert _hold(v).tolist() == [2.0, 2.0, 2.0, 2.0, 3.0, 3.0]
