@@ -332,3 +332,80 @@ def test_gate_hard_cases():
         for c, v in per_case.items():
             print(f"  {c}: {v:.2f} right")
         assert ba > 0.5
+
+
+# ------------------------------------------------------------------ stick-slip episodes (no limit cycle)
+STICK_CASES = {  # case: truth (the valve sticks?)
+    "stiction, slow PI, SP steps": True,
+    "healthy, slow PI, SP steps": False,
+    "healthy, near-integrating plant": False,
+    "healthy, SIMC PI, SP steps": False,
+}
+
+
+def stick_case(case: str, rng: np.random.Generator, seed: int):
+    """One planted window (751 samples at 1 s) for :data:`STICK_CASES`: (pv, op, sp) or None.
+
+    A FOPDT plant (gain 0.5-3, tau 5-40 s, dead time 0.1-0.5 tau; near-integrating: tau
+    2000-20000 s), a 751 s warm-up at the set point 50, then 2-4 set-point steps of 2-10 % at random times, measurement noise 0.5-5 %
+    and load noise 0-2 % (standard deviations, PV / OP units).  Slow PI: the SIMC gains
+    times 0.2-0.6 (proportional) and 0.1-0.5 (integral), so that the OP ramps for a long
+    time before a sticking valve breaks away.  Stiction: the two-parameter model with
+    S 2-8 %, J 0-0.5 S.  Windows whose stem limit-cycles (>= 4 cycles) are drawn again: the
+    detector is for sticking valves *without* a limit cycle."""
+    for _ in range(20):
+        tau = float(np.exp(rng.uniform(np.log(5), np.log(40))))
+        if case == "healthy, near-integrating plant":
+            tau = float(np.exp(rng.uniform(np.log(2000), np.log(20000))))
+        theta = max(1.0, float(rng.uniform(0.1, 0.5)) * min(tau, 40.0))
+        plant = FOPDT(float(np.exp(rng.uniform(np.log(0.5), np.log(3)))), tau, theta)
+        pi = simc(plant)
+        if "slow PI" in case or "stiction" in case:
+            pi = PIController(pi.kc * float(rng.uniform(0.2, 0.6)), pi.ki * float(rng.uniform(0.1, 0.5)))
+        times = np.sort(rng.uniform(800, 1350, int(rng.integers(2, 5))))
+        level = 50.0
+        steps = [SetpointStep(0.0, level)]
+        for t in times:
+            level += float(rng.choice([-1, 1]) * rng.uniform(2, 10))
+            steps.append(SetpointStep(float(t), level))
+        kw = dict(plant=plant, controller=pi, setpoint_steps=tuple(steps), duration_s=1502.0,
+                  measurement_noise_std=float(rng.uniform(0.005, 0.05)) * 10,
+                  load_noise_std=float(rng.uniform(0.0, 0.02)) * 10)
+        if case.startswith("stiction"):
+            s = float(rng.uniform(2, 8))
+            kw["valve"] = ChoudhuryStictionSpec(S=s, J=s * float(rng.uniform(0.0, 0.5)))
+        sim = simulate_loop(LoopScenario(**kw), seed=seed)
+        if not np.all(np.isfinite(sim.pv)):
+            continue
+        if case.startswith("stiction") and limit_cycles(sim.mv[-751:]) >= 4:
+            continue
+        return sim.pv[-751:], sim.op[-751:], sim.sp[-751:]
+    return None
+
+
+def stick_benchmark(n_per_case: int, seed: int):
+    """Share of planted windows with stick-slip episodes found (per case)."""
+    from pipeline.stickslip import stick_slip_episodes
+    rng = np.random.default_rng(seed)
+    found: dict[str, list[bool]] = {}
+    for case in STICK_CASES:
+        found[case] = []
+        for i in range(n_per_case):
+            w = stick_case(case, rng, seed + i)
+            if w is not None:
+                r = stick_slip_episodes(*w)
+                found[case].append(bool(r and r.episodes))
+    tpr = np.mean([v for c, t in STICK_CASES.items() if t for v in found[c]])
+    tnr = 1 - np.mean([v for c, t in STICK_CASES.items() if not t for v in found[c]])
+    return {c: float(np.mean(v)) for c, v in found.items()}, (tpr + tnr) / 2
+
+
+@pytest.mark.bench
+def test_stick_slip_planted():
+    n = int(os.environ.get("LOOPWATCH_STICK_CASES", "60"))
+    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
+        per_case, ba = stick_benchmark(n, seed)
+        print(f"\n[stick-slip planted] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
+        for c, v in per_case.items():
+            print(f"  {c}: episodes found in {v:.2f}")
+        assert ba > 0.5
