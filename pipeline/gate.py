@@ -18,7 +18,7 @@ Choices the method leaves open, documented here:
 * detrending: a straight line is removed from the window before anything else;
 * the ACF is the biased estimate (divided by N) from an FFT, up to lag ``2N/3``; at least
   ``min_periods`` full-period estimates (``min_periods + 2`` zero crossings) are needed, so the
-  window must hold about four periods or more;
+  window must hold about four periods or more (default 3 estimates; periods down to 3 samples);
 * sustained, not resonant: band-limited noise (a well-damped loop excited by noise, or noise
   band-passed by the filter above) also has an ACF with a few regular zero crossings near lag
   zero, but its ACF peaks are small and die out.  We require every ACF peak near ``T``, ``2T``
@@ -27,6 +27,12 @@ Choices the method leaves open, documented here:
   noise through the same filter (Bartlett's formula, ``se^2 = sum_k rho_h(k)^2 / N`` with
   ``rho_h`` the filter's own autocorrelation; ``1/sqrt(N)`` for the unfiltered window) and
   ``z = 3``: the peaks must be significant for this window length and band, not a fixed number.
+  For a band-passed candidate the null is not white but a power law ``f^b`` fitted to the
+  periodogram outside the band (Vaughan 2005; :func:`power_law_background`), so that drifting,
+  coloured noise does not pass for an oscillation; and ``se`` is inflated by
+  ``sqrt(N / (N - kT))`` for the furthest peak ``kT`` checked (the taper-corrected ACF there
+  averages only ``N - kT`` products), which lets short records (3 period estimates) be judged
+  without loosening the test.
   ``min_persistence`` (default 0.1) asks that the periodic part carry at least a tenth of the
   analysed variance.  This check is ours, not Thornhill's;
 * amplitude: half the 5 %–95 % percentile range of the detrended window (robust half
