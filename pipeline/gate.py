@@ -18,7 +18,7 @@ Choices the method leaves open, documented here:
 * detrending: a straight line is removed from the window before anything else;
 * the ACF is the biased estimate (divided by N) from an FFT, up to lag ``2N/3``; at least
   ``min_periods`` full-period estimates (``min_periods + 2`` zero crossings) are needed, so the
-  window must hold about four periods or more;
+  window must hold about four periods or more (default 3 estimates; periods down to 3 samples);
 * sustained, not resonant: band-limited noise (a well-damped loop excited by noise, or noise
   band-passed by the filter above) also has an ACF with a few regular zero crossings near lag
   zero, but its ACF peaks are small and die out.  We require every ACF peak near ``T``, ``2T``
@@ -27,6 +27,12 @@ Choices the method leaves open, documented here:
   noise through the same filter (Bartlett's formula, ``se^2 = sum_k rho_h(k)^2 / N`` with
   ``rho_h`` the filter's own autocorrelation; ``1/sqrt(N)`` for the unfiltered window) and
   ``z = 3``: the peaks must be significant for this window length and band, not a fixed number.
+  For a band-passed candidate the null is not white but a power law ``f^b`` fitted to the
+  periodogram outside the band (Vaughan 2005; :func:`power_law_background`), so that drifting,
+  coloured noise does not pass for an oscillation; and ``se`` is inflated by
+  ``sqrt(N / (N - kT))`` for the furthest peak ``kT`` checked (the taper-corrected ACF there
+  averages only ``N - kT`` products), which lets short records (3 period estimates) be judged
+  without loosening the test.
   ``min_persistence`` (default 0.1) asks that the periodic part carry at least a tenth of the
   analysed variance.  This check is ours, not Thornhill's;
 * amplitude: half the 5 %–95 % percentile range of the detrended window (robust half
@@ -66,8 +72,8 @@ class GateConfig:
     min_regularity: float = 1.0
     min_persistence: float = 0.1
     acf_z: float = 3.0
-    min_periods: int = 5
-    min_period_samples: float = 4.0
+    min_periods: int = 3
+    min_period_samples: float = 3.0
     max_bands: int = 3
 
     def __post_init__(self) -> None:
@@ -199,16 +205,21 @@ def _hann(n: int) -> np.ndarray:
     return w
 
 
-def acf_standard_error(n: int, band: tuple[float, float] | None, *, weights: np.ndarray | None = None) -> float:
-    """Standard error of the ACF of white noise after the gate's band-pass (Bartlett's formula).
+def acf_standard_error(n: int, band: tuple[float, float] | None, *, weights: np.ndarray | None = None,
+                       background: np.ndarray | None = None) -> float:
+    """Standard error of the ACF of noise after the gate's band-pass (Bartlett's formula).
 
     ``weights``: the band's gain :func:`pipeline.filters.band_weights` at ``rfftfreq(n)`` if
-    already computed."""
-    if band is None:
+    already computed.  ``background``: the null's power spectrum at ``rfftfreq(n)`` (any
+    scale; ``None`` = white noise), see :func:`power_law_background`."""
+    if band is None and background is None:
         return 1.0 / np.sqrt(n)
     if weights is None:
-        weights = band_weights(_frequencies(n), f_lo=band[0], f_hi=band[1])
+        weights = (np.ones(n // 2 + 1) if band is None
+                   else band_weights(_frequencies(n), f_lo=band[0], f_hi=band[1]))
     g = weights**2  # power response
+    if background is not None:
+        g = g * background
     rho = fft.irfft(g, n)
     if rho[0] <= 0:
         return 1.0
@@ -216,10 +227,36 @@ def acf_standard_error(n: int, band: tuple[float, float] | None, *, weights: np.
     return float(np.sqrt(np.sum(rho**2) / n))
 
 
-def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_period: float):
-    """Pass bands ``[f0/2, 2 f0]`` (cycles/sample) around the strongest spectral peaks."""
+def power_law_background(spec: np.ndarray, band: tuple[float, float]) -> np.ndarray:
+    """Null spectrum for a band: a power law ``f^b`` fitted outside the band (Vaughan 2005).
+
+    Vaughan (2005, "A simple test for periodic signals in red noise", A&A 431:391–403, §3)
+    models the background of a periodogram as a power law and fits it by least squares of
+    ``log I`` against ``log f``; a drifting process variable (integrated or strongly
+    autocorrelated disturbances) has ``b`` near -2.  We fit the Hann-windowed periodogram
+    ``spec`` outside ``[f_lo, f_hi]`` (so that an oscillation inside the band does not raise
+    its own null) and clip ``b`` to ``[-4, 0]``: the null is never whiter than white noise,
+    so the test is never less strict than with a white null.  Only the shape matters (the
+    ACF is normalised), so the constant of the fit and Vaughan's bias term drop out."""
+    f = _frequencies(2 * (spec.size - 1)) if spec.size > 1 else np.zeros(1)
+    out = (f > 0) & ((f < band[0]) | (f > band[1])) & (spec > 0)
+    bg = np.zeros_like(f)
+    if np.count_nonzero(out) < 8:
+        bg[1:] = 1.0
+        return bg
+    slope = np.polyfit(np.log(f[out]), np.log(spec[out]), 1)[0]
+    bg[1:] = f[1:] ** float(np.clip(slope, -4.0, 0.0))
+    return bg
+
+
+def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_period: float,
+                     spec: np.ndarray | None = None):
+    """Pass bands ``[f0/2, 2 f0]`` (cycles/sample) around the strongest spectral peaks.
+
+    ``spec``: the Hann-windowed periodogram of ``x`` if already computed."""
     n = x.size
-    spec = np.abs(fft.rfft(x * _hann(n))) ** 2
+    if spec is None:
+        spec = hann_periodogram(x)
     f = _frequencies(n)
     smooth = signal.savgol_filter(spec, 5, 2) if spec.size > 7 else spec
     peaks, props = signal.find_peaks(smooth, prominence=0)
@@ -227,6 +264,11 @@ def _band_candidates(x: np.ndarray, *, max_bands: int, min_period: float, max_pe
     peaks = peaks[ok]
     order = np.argsort(props["prominences"][ok])[::-1][:max_bands]
     return [(f[p] / 2.0, min(2.0 * f[p], 0.5)) for p in peaks[order]]
+
+
+def hann_periodogram(x: np.ndarray) -> np.ndarray:
+    """``|rfft(x * hann)|^2``."""
+    return np.abs(fft.rfft(x * _hann(x.size))) ** 2
 
 
 def _bandpass(x: np.ndarray, lo: float, hi: float, *, spectrum: np.ndarray | None = None,
@@ -276,10 +318,13 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
     max_lag = (2 * n) // 3
     max_period = max_lag / (config.min_periods / 2.0 + 1.0)
     best: tuple | None = None
+    periodogram = hann_periodogram(y)
+
     def candidates():
         yield None  # the raw signal first, then band-pass filtered around spectral peaks
         yield from _band_candidates(
-            y, max_bands=config.max_bands, min_period=config.min_period_samples, max_period=max_period / 2
+            y, max_bands=config.max_bands, min_period=config.min_period_samples, max_period=max_period / 2,
+            spec=periodogram,
         )
 
     spectrum = None  # rfft(y), shared by the band-passed candidates
@@ -294,7 +339,13 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
                                          min_periods=config.min_periods)
         if not np.isfinite(tp):
             continue
-        need = max(config.min_persistence, config.acf_z * acf_standard_error(n, band, weights=weights))
+        background = None if band is None else power_law_background(periodogram, band)
+        # the taper-corrected (unbiased) ACF at lag k has the variance of N - k products, not N:
+        # the furthest peak checked (k T, k <= 3, within the lags computed) sets the inflation
+        k_last = min(3, int((max_lag + 1) / tp - 0.25)) if tp > 0 else 1
+        inflation = np.sqrt(n / max(n - k_last * tp, 1.0))
+        need = max(config.min_persistence,
+                   config.acf_z * inflation * acf_standard_error(n, band, weights=weights, background=background))
         passed = (
             reg > config.min_regularity
             and pers >= need

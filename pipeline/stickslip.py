@@ -104,7 +104,14 @@ def stick_slip_episodes(pv: np.ndarray, op: np.ndarray, sp: np.ndarray, *, z: fl
         e0 = e_s[end]
         towards = (np.abs(e_s[after]) < abs(e0) - z * se_pv) & (np.sign(e_s[after]) == np.sign(e0))
         slipped = bool(np.any(towards) or np.any(np.sign(e_s[after]) == -np.sign(e0)))
-        if slipped and np.any(np.abs(pv_s[after] - pv_s[end]) > z * se_pv):
+        # abrupt: the PV moves after the stuck phase by more than twice its move over the
+        # phase's last segment plus z standard errors (a jump in the PV's rate, which neither
+        # a first-order creep towards the SP nor an integrating PV turning round makes), and
+        # no set-point move explains it
+        before = abs(pv_s[end] - pv_s[end - w])
+        jump = np.abs(pv_s[after] - pv_s[end]).max() if end < n else 0.0
+        sp_still = np.ptp(sp[end - w:min(n, end + w + 1)]) <= z * s_pv
+        if slipped and jump > 2.0 * before + z * se_pv and sp_still:
             episodes += 1
             stuck_samples[i:end + 1] = True
         i = j + 1

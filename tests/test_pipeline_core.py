@@ -173,3 +173,15 @@ def test_tdnl_is_energy_weighted():
 
 def test_imf_without_full_wave_has_no_dnl():
     assert np.isnan(imf_dnl(np.linspace(-1, 1, 100), fs=1.0).dnl)
+
+
+def test_gate_passes_short_and_fast_oscillations():
+    """Planted: 4.5 periods of a sine in a 450-sample record; a 3.3-sample period."""
+    rng = np.random.default_rng(3)
+    t = np.arange(450)
+    g = oscillation_gate(np.sin(2 * np.pi * t / 100) + 0.1 * rng.standard_normal(t.size), fs=1.0)
+    assert g.oscillating and g.period_s == pytest.approx(100, rel=0.1), g
+    t = np.arange(1441)
+    g = oscillation_gate(np.sin(2 * np.pi * t / 3.3) + 0.2 * rng.standard_normal(t.size), fs=1.0)
+    assert g.oscillating and g.period_s == pytest.approx(3.3, rel=0.05), g
+

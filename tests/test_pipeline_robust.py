@@ -204,3 +204,28 @@ def test_karnopp_loop_spec_from_the_paper_valve():
     per_pct = SA_M2 * (206.84e3 - 41.74e3) / 100  # newton per % of the pressure span
     assert spec.fc == pytest.approx(152.7 / per_pct)
     assert spec.tau_s == pytest.approx(4865.0 / 2.05e5)
+
+
+def test_no_stick_slip_when_an_integrating_pv_turns_round():
+    """Level-like PV (integral of OP - balance): while the OP ramps through the balance the
+    PV is momentarily steady away from the SP, then moves on; no jump in its rate, no episode."""
+    rng = np.random.default_rng(5)
+    n = 750
+    op = np.linspace(-3.0, 3.0, n)
+    pv = np.cumsum(op) * 0.02 + 0.05 * rng.standard_normal(n)
+    sp = np.full(n, pv.max() + 5.0)
+    found = stick_slip_episodes(pv, op, sp)
+    assert found is None or found.episodes == 0, found
+
+
+def test_no_stick_slip_when_a_set_point_step_moves_the_pv():
+    """Healthy valve, OP ramping slowly with the PV creeping, then an SP step moves both:
+    the PV's move is explained by the set point, not a slip."""
+    rng = np.random.default_rng(6)
+    n = 750
+    t = np.arange(n)
+    sp = np.where(t < 400, 10.0, 14.0)
+    pv = np.where(t < 400, 8.0 + 0.001 * t, 13.0 - np.exp(-(t - 400) / 20.0)) + 0.05 * rng.standard_normal(n)
+    op = np.where(t < 400, 0.01 * t, 6.0 + 0.005 * (t - 400)) + 0.02 * rng.standard_normal(n)
+    found = stick_slip_episodes(pv, op, sp)
+    assert found is None or found.episodes == 0, found

@@ -243,3 +243,169 @@ def test_accuracy_simulated():
         print_report(rows)
         s = summarise(rows, "robust")
         assert s["ba_nl_vs_l"] > 0.5  # sanity only: the figures are reported in ACCURACY.md
+
+
+# ------------------------------------------------------------------ hard cases for the gate alone
+GATE_CASES = {  # case: truth (oscillating?)
+    "short record (2.5-5 periods)": True,
+    "irregular (period jitter 5-20 %)": True,
+    "fast (period 3-4 samples)": True,
+    "regular, coloured noise": True,
+    "drifting coloured noise": False,
+    "random walk + AR(1)": False,
+    "damped resonance (zeta 0.4-1)": False,
+}
+
+
+def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
+    from scipy.signal import lfilter
+    return lfilter([1.0], [1.0, -phi], rng.standard_normal(n + 200))[200:]
+
+
+def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
+    """One planted window for :data:`GATE_CASES` (record length 200-4096 samples).
+
+    Oscillations: a sine, a triangle (stick-slip OP) or a square wave, amplitude 1, in
+    coloured noise (AR(1), phi 0-0.95, standard deviation 0.1-0.5) plus a random slow drift;
+    the phase advances by ``2 pi / T`` per sample with the period jittered per cycle.
+    Non-oscillating: AR(1) with phi 0.9-0.999 plus a random walk and white noise (a drifting
+    process variable), or a second-order resonance driven by white noise with damping 0.4-1.
+    """
+    from scipy.signal import lfilter
+    n = int(np.exp(rng.uniform(np.log(200), np.log(4096))))
+    if GATE_CASES[case]:
+        jitter = 0.0
+        if case.startswith("short"):
+            n = int(rng.integers(200, 1000))
+            period = n / rng.uniform(2.5, 5.0)
+        elif case.startswith("fast"):
+            period = rng.uniform(3.0, 4.0)
+        else:
+            period = float(np.exp(rng.uniform(np.log(5), np.log(n / 8))))
+        if case.startswith("irregular"):
+            jitter = rng.uniform(0.05, 0.2)
+        n_cyc = int(n / period) + 3
+        lengths = period * np.clip(1.0 + jitter * rng.standard_normal(n_cyc), 0.5, 1.5)
+        knots = np.r_[0.0, np.cumsum(lengths)]
+        phase = np.interp(np.arange(n) + rng.uniform(0, period), knots, 2 * np.pi * np.arange(knots.size))
+        shape = rng.choice(["sine", "triangle", "square"])
+        if shape == "sine":
+            s = np.sin(phase)
+        elif shape == "triangle":
+            s = 2 / np.pi * np.arcsin(np.sin(phase))
+        else:
+            s = np.sign(np.sin(phase))
+        noise = rng.uniform(0.1, 0.5) * _ar1(rng, n, rng.uniform(0.0, 0.95))
+        noise = noise / max(np.std(noise), 1e-12) * rng.uniform(0.1, 0.5)
+        drift = np.cumsum(rng.standard_normal(n)) * rng.uniform(0, 0.02)
+        return s + noise + drift
+    if case.startswith("damped"):
+        zeta = rng.uniform(0.4, 1.0)
+        w = 2 * np.pi / float(np.exp(rng.uniform(np.log(8), np.log(n / 8))))
+        a1, a2 = -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(max(1 - zeta**2, 0.0))), np.exp(-2 * zeta * w)
+        return lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n))
+    x = _ar1(rng, n, rng.uniform(0.9, 0.999))
+    if case.startswith("random walk"):
+        x = x + np.cumsum(rng.standard_normal(n)) * rng.uniform(0.05, 0.5)
+    return x + rng.uniform(0, 0.5) * np.std(x) * rng.standard_normal(n)
+
+
+def gate_benchmark(n_per_case: int, seed: int, config=None):
+    """Share of planted gate cases judged right, per case; and the balanced accuracy."""
+    from pipeline.gate import GateConfig, oscillation_gate
+    rng = np.random.default_rng(seed)
+    right: dict[str, list[bool]] = {}
+    for case, truth in GATE_CASES.items():
+        right[case] = [oscillation_gate(gate_case(case, rng), fs=1.0, config=config or GateConfig()).oscillating == truth
+                       for _ in range(n_per_case)]
+    pos = [v for c, t in GATE_CASES.items() if t for v in right[c]]
+    neg = [v for c, t in GATE_CASES.items() if not t for v in right[c]]
+    return {c: float(np.mean(v)) for c, v in right.items()}, (np.mean(pos) + np.mean(neg)) / 2
+
+
+@pytest.mark.bench
+def test_gate_hard_cases():
+    n = int(os.environ.get("LOOPWATCH_GATE_CASES", "100"))
+    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
+        per_case, ba = gate_benchmark(n, seed)
+        print(f"\n[gate hard cases] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
+        for c, v in per_case.items():
+            print(f"  {c}: {v:.2f} right")
+        assert ba > 0.5
+
+
+# ------------------------------------------------------------------ stick-slip episodes (no limit cycle)
+STICK_CASES = {  # case: truth (the valve sticks?)
+    "stiction, slow PI, SP steps": True,
+    "healthy, slow PI, SP steps": False,
+    "healthy, near-integrating plant": False,
+    "healthy, SIMC PI, SP steps": False,
+}
+
+
+def stick_case(case: str, rng: np.random.Generator, seed: int):
+    """One planted window (751 samples at 1 s) for :data:`STICK_CASES`: (pv, op, sp) or None.
+
+    A FOPDT plant (gain 0.5-3, tau 5-40 s, dead time 0.1-0.5 tau; near-integrating: tau
+    2000-20000 s), a 751 s warm-up at the set point 50, then 2-4 set-point steps of 2-10 % at random times, measurement noise 0.5-5 %
+    and load noise 0-2 % (standard deviations, PV / OP units).  Slow PI: the SIMC gains
+    times 0.2-0.6 (proportional) and 0.1-0.5 (integral), so that the OP ramps for a long
+    time before a sticking valve breaks away.  Stiction: the two-parameter model with
+    S 2-8 %, J 0-0.5 S.  Windows whose stem limit-cycles (>= 4 cycles) are drawn again: the
+    detector is for sticking valves *without* a limit cycle."""
+    for _ in range(20):
+        tau = float(np.exp(rng.uniform(np.log(5), np.log(40))))
+        if case == "healthy, near-integrating plant":
+            tau = float(np.exp(rng.uniform(np.log(2000), np.log(20000))))
+        theta = max(1.0, float(rng.uniform(0.1, 0.5)) * min(tau, 40.0))
+        plant = FOPDT(float(np.exp(rng.uniform(np.log(0.5), np.log(3)))), tau, theta)
+        pi = simc(plant)
+        if "slow PI" in case or "stiction" in case:
+            pi = PIController(pi.kc * float(rng.uniform(0.2, 0.6)), pi.ki * float(rng.uniform(0.1, 0.5)))
+        times = np.sort(rng.uniform(800, 1350, int(rng.integers(2, 5))))
+        level = 50.0
+        steps = [SetpointStep(0.0, level)]
+        for t in times:
+            level += float(rng.choice([-1, 1]) * rng.uniform(2, 10))
+            steps.append(SetpointStep(float(t), level))
+        kw = dict(plant=plant, controller=pi, setpoint_steps=tuple(steps), duration_s=1502.0,
+                  measurement_noise_std=float(rng.uniform(0.005, 0.05)) * 10,
+                  load_noise_std=float(rng.uniform(0.0, 0.02)) * 10)
+        if case.startswith("stiction"):
+            s = float(rng.uniform(2, 8))
+            kw["valve"] = ChoudhuryStictionSpec(S=s, J=s * float(rng.uniform(0.0, 0.5)))
+        sim = simulate_loop(LoopScenario(**kw), seed=seed)
+        if not np.all(np.isfinite(sim.pv)):
+            continue
+        if case.startswith("stiction") and limit_cycles(sim.mv[-751:]) >= 4:
+            continue
+        return sim.pv[-751:], sim.op[-751:], sim.sp[-751:]
+    return None
+
+
+def stick_benchmark(n_per_case: int, seed: int):
+    """Share of planted windows with stick-slip episodes found (per case)."""
+    from pipeline.stickslip import stick_slip_episodes
+    rng = np.random.default_rng(seed)
+    found: dict[str, list[bool]] = {}
+    for case in STICK_CASES:
+        found[case] = []
+        for i in range(n_per_case):
+            w = stick_case(case, rng, seed + i)
+            if w is not None:
+                r = stick_slip_episodes(*w)
+                found[case].append(bool(r and r.episodes))
+    tpr = np.mean([v for c, t in STICK_CASES.items() if t for v in found[c]])
+    tnr = 1 - np.mean([v for c, t in STICK_CASES.items() if not t for v in found[c]])
+    return {c: float(np.mean(v)) for c, v in found.items()}, (tpr + tnr) / 2
+
+
+@pytest.mark.bench
+def test_stick_slip_planted():
+    n = int(os.environ.get("LOOPWATCH_STICK_CASES", "60"))
+    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
+        per_case, ba = stick_benchmark(n, seed)
+        print(f"\n[stick-slip planted] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
+        for c, v in per_case.items():
+            print(f"  {c}: episodes found in {v:.2f}")
+        assert ba > 0.5
