@@ -292,69 +292,98 @@ def _spline_into(out, x, y, s, c2, c3):  # pragma: no cover - compiled
 
 
 @_compile
-def _mirror(s, imax, imin, nbsym):  # pragma: no cover - compiled
-    """:func:`_mirror_indices` on arrays (``nbsym >= 1``); ``ok`` False where that returns None."""
-    n = s.size
-    n_hi, n_lo = imax.size, imin.size
-    one = np.empty(1, imax.dtype)
-    if imax[0] < imin[0]:
-        if s[0] > s[imin[0]]:
-            lmax, lmin, lsym = imax[1:min(n_hi, nbsym + 1)][::-1].copy(), imin[:min(n_lo, nbsym)][::-1].copy(), imax[0]
-        else:
-            one[0] = 0
-            lmax = imax[:min(n_hi, nbsym)][::-1].copy()
-            lmin, lsym = np.concatenate((imin[:min(n_lo, nbsym - 1)][::-1], one)), 0
-    else:
-        if s[0] < s[imax[0]]:
-            lmax, lmin, lsym = imax[:min(n_hi, nbsym)][::-1].copy(), imin[1:min(n_lo, nbsym + 1)][::-1].copy(), imin[0]
-        else:
-            one[0] = 0
-            lmax = np.concatenate((imax[:min(n_hi, nbsym - 1)][::-1], one))
-            lmin, lsym = imin[:min(n_lo, nbsym)][::-1].copy(), 0
-    one[0] = n - 1
-    if imax[-1] < imin[-1]:
-        if s[-1] < s[imax[-1]]:
-            rmax = imax[max(n_hi - nbsym, 0):][::-1].copy()
-            rmin, rsym = imin[max(n_lo - nbsym - 1, 0):][:-1][::-1].copy(), imin[-1]
-        else:
-            rmax = np.concatenate((one, imax[max(n_hi - nbsym + 1, 0):][::-1]))
-            rmin, rsym = imin[max(n_lo - nbsym, 0):][::-1].copy(), n - 1
-    else:
-        if s[-1] > s[imin[-1]]:
-            rmax = imax[max(n_hi - nbsym - 1, 0):][:-1][::-1].copy()
-            rmin, rsym = imin[max(n_lo - nbsym, 0):][::-1].copy(), imax[-1]
-        else:
-            rmax = imax[max(n_hi - nbsym, 0):][::-1].copy()
-            rmin, rsym = np.concatenate((one, imin[max(n_lo - nbsym + 1, 0):][::-1])), n - 1
-    ok = lmin.size > 0 and rmin.size > 0 and lmax.size > 0 and rmax.size > 0
-    if ok and (2 * lsym - lmin[0] > 0 or 2 * lsym - lmax[0] > 0):
-        if lsym == imax[0]:
-            lmax = imax[:min(n_hi, nbsym)][::-1].copy()
-        else:
-            lmin = imin[:min(n_lo, nbsym)][::-1].copy()
-        ok = lsym != 0
-        lsym = 0
-    if ok and (2 * rsym - rmin[-1] < n - 1 or 2 * rsym - rmax[-1] < n - 1):
-        if rsym == imax[-1]:
-            rmax = imax[max(n_hi - nbsym, 0):][::-1].copy()
-        else:
-            rmin = imin[max(n_lo - nbsym, 0):][::-1].copy()
-        ok = rsym != n - 1
-        rsym = n - 1
-    return ok, lmax, lmin, lsym, rmax, rmin, rsym
+def _put_reversed(row, src, lo, hi, first, last):  # pragma: no cover - compiled
+    """``row[:count] = [first] + src[lo:hi][::-1] + [last]`` (``-1``: no ``first`` / ``last``);
+    returns ``count``."""
+    count = 0
+    if first >= 0:
+        row[0] = first
+        count = 1
+    for i in range(hi - 1, lo - 1, -1):
+        row[count] = src[i]
+        count += 1
+    if last >= 0:
+        row[count] = last
+        count += 1
+    return count
 
 
 @_compile
-def _knots(s, left, inner, right, lsym, rsym):  # pragma: no cover - compiled
+def _mirror(s, imax, imin, nbsym, pts, count):  # pragma: no cover - compiled
+    """:func:`_mirror_indices` on arrays (``nbsym >= 1``): the mirrored extrema go to the rows
+    of ``pts`` (0 left maxima, 1 left minima, 2 right maxima, 3 right minima; ``count`` holds
+    their numbers).  Returns ``(ok, lsym, rsym)``, ``ok`` False where that returns None."""
+    n, n_hi, n_lo, nb = s.size, imax.size, imin.size, nbsym
+    if imax[0] < imin[0]:
+        if s[0] > s[imin[0]]:
+            count[0] = _put_reversed(pts[0], imax, 1, min(n_hi, nb + 1), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+            lsym = imax[0]
+        else:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb - 1), -1, 0)
+            lsym = 0
+    else:
+        if s[0] < s[imax[0]]:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 1, min(n_lo, nb + 1), -1, -1)
+            lsym = imin[0]
+        else:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb - 1), -1, 0)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+            lsym = 0
+    if imax[n_hi - 1] < imin[n_lo - 1]:
+        if s[n - 1] < s[imax[n_hi - 1]]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb - 1, 0), n_lo - 1, -1, -1)
+            rsym = imin[n_lo - 1]
+        else:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb + 1, 0), n_hi, n - 1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+            rsym = n - 1
+    else:
+        if s[n - 1] > s[imin[n_lo - 1]]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb - 1, 0), n_hi - 1, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+            rsym = imax[n_hi - 1]
+        else:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb + 1, 0), n_lo, n - 1, -1)
+            rsym = n - 1
+    if count[0] == 0 or count[1] == 0 or count[2] == 0 or count[3] == 0:
+        return False, lsym, rsym
+    # mirrored points that fall inside the window: mirror about the window's end instead
+    if 2 * lsym - pts[1, 0] > 0 or 2 * lsym - pts[0, 0] > 0:
+        if lsym == imax[0]:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+        else:
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+        if lsym == 0:
+            return False, lsym, rsym
+        lsym = 0
+    if 2 * rsym - pts[3, count[3] - 1] < n - 1 or 2 * rsym - pts[2, count[2] - 1] < n - 1:
+        if rsym == imax[n_hi - 1]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+        else:
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+        if rsym == n - 1:
+            return False, lsym, rsym
+        rsym = n - 1
+    return True, lsym, rsym
+
+
+@_compile
+def _knots(s, left, a, inner, right, c, lsym, rsym):  # pragma: no cover - compiled
     """Knot positions and values of one envelope: the extrema ``inner`` with the mirrored ones
-    (``left`` about ``lsym``, ``right`` about ``rsym``), after a flag that is ``False``
-    unless they are at least 4, cover ``[0, n - 1]`` and increase (the checks of :meth:`_BoundedEMD._envelope_mean`)."""
-    n, a, b = s.size, left.size, inner.size
-    k = a + b + right.size
+    (``left[:a]`` about ``lsym``, ``right[:c]`` about ``rsym``), after a flag that is ``False``
+    unless they are at least 4, cover ``[0, n - 1]`` and increase (the checks of
+    :meth:`_BoundedEMD._envelope_mean`)."""
+    n, b = s.size, inner.size
+    k = a + b + c
     x, y = np.empty(k), np.empty(k)
-    if k <= 3 or 2 * lsym - left[0] > 0 or 2 * rsym - right[-1] < n - 1:
+    if k <= 3 or 2 * lsym - left[0] > 0 or 2 * rsym - right[c - 1] < n - 1:
         return False, x, y
-    if 2 * lsym - left[-1] >= inner[0] or inner[-1] >= 2 * rsym - right[0]:
+    if 2 * lsym - left[a - 1] >= inner[0] or inner[b - 1] >= 2 * rsym - right[0]:
         return False, x, y
     for j in range(k):
         if j < a:
@@ -399,11 +428,12 @@ def _sift_step(imf, nbsym):  # pragma: no cover - compiled
     if n_hi + n_lo <= 2:
         return n_hi + n_lo, False
     imax, imin = imax[:n_hi], imin[:n_lo]
-    ok, lmax, lmin, lsym, rmax, rmin, rsym = _mirror(imf, imax, imin, nbsym)
+    pts, count = np.empty((4, nbsym + 1), np.int64), np.empty(4, np.int64)
+    ok, lsym, rsym = _mirror(imf, imax, imin, nbsym, pts, count)
     if not ok:
         return n_hi + n_lo, False
-    ok_u, xu, yu = _knots(imf, lmax, imax, rmax, lsym, rsym)
-    ok_l, xl, yl = _knots(imf, lmin, imin, rmin, lsym, rsym)
+    ok_u, xu, yu = _knots(imf, pts[0], count[0], imax, pts[2], count[2], lsym, rsym)
+    ok_l, xl, yl = _knots(imf, pts[1], count[1], imin, pts[3], count[3], lsym, rsym)
     if not (ok_u and ok_l):
         return n_hi + n_lo, False
     ok_u, su, c2u, c3u = _spline_fit(xu, yu)
