@@ -411,20 +411,18 @@ def _sift_step(imf, nbsym):  # pragma: no cover - compiled
     imax, imin = np.empty(n, np.int64), np.empty(n, np.int64)
     n_hi = n_lo = 0
     prev = imf[1] - imf[0]
-    if not abs(prev) >= 1e-160:
-        return -1, False
-    for i in range(1, n - 1):
+    small = not abs(prev) >= 1e-160
+    for i in range(1, n - 1):  # branch-free: noisy windows turn at random
         nxt = imf[i + 1] - imf[i]
-        if not abs(nxt) >= 1e-160:  # flat step (or NaN): PyEMD's plateau rules
-            return -1, False
-        if (prev > 0) != (nxt > 0):
-            if prev > 0:
-                imax[n_hi] = i
-                n_hi += 1
-            else:
-                imin[n_lo] = i
-                n_lo += 1
+        small |= not abs(nxt) >= 1e-160
+        rise, rise_next = prev > 0, nxt > 0
+        imax[n_hi] = i
+        n_hi += rise and not rise_next
+        imin[n_lo] = i
+        n_lo += rise_next and not rise
         prev = nxt
+    if small:  # a flat step (or NaN): PyEMD's plateau rules
+        return -1, False
     if n_hi + n_lo <= 2:
         return n_hi + n_lo, False
     imax, imin = imax[:n_hi], imin[:n_lo]
