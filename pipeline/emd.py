@@ -10,7 +10,12 @@ number of IMFs: the cost is then at most ``sifts * max_imfs`` sifts.  The first 
 run are identical to those of an uncapped run with the same stop rule.
 
 The sifting itself is PyEMD's algorithm run by a lean loop (:class:`_BoundedEMD`) that gives
-PyEMD's IMFs bit for bit at a fraction of its numpy call overhead per sift.
+PyEMD's IMFs bit for bit at a fraction of its cost: each sift (extrema, boundary mirroring, both
+spline envelopes, mean subtraction) is one numba-compiled function, :func:`_sift_step`,
+translated operation by operation from the numpy code kept here as its reference.  numba caches
+the compiled code on disk (``__pycache__`` next to this file, else the user's cache directory;
+without any writable location it compiles in memory): the first sift of a process costs about
+0.5 s with the cache and several seconds without (BENCHMARKS.md, issue 2).
 """
 
 from __future__ import annotations

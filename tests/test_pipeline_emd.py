@@ -160,3 +160,23 @@ def test_compiled_sift_is_used_and_hands_special_rules_back():
     assert _sift_step(flat, 2) == (-1, False) and np.array_equal(flat, SIGNALS["quantised sine (flat steps)"])
     trend = T[:50] ** 1.5
     assert _sift_step(trend.copy(), 2) == (0, False)
+
+
+@pytest.mark.slow
+def test_kernel_compiles_without_a_writable_cache_location():
+    """numba refuses ``cache=True`` when no cache location is writable (read-only installation
+    and home); the kernel must then compile in memory.  ``IPythonCacheLocator`` as the only
+    locator applies nowhere outside IPython: no location at all."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = ("import numpy as np\nfrom pipeline.emd import _sift_step, emd\n"
+              "imfs, _ = emd(np.sin(np.arange(1000) / 7.0) + np.sin(np.arange(1000) / 41.0))\n"
+              "print(type(_sift_step._cache).__name__, imfs.shape[0])\n")
+    env = dict(os.environ, NUMBA_CACHE_LOCATOR_CLASSES="IPythonCacheLocator")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600,
+                       env=env, cwd=Path(__file__).resolve().parents[1])
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == ["NullCache", "3"]
