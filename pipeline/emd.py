@@ -15,7 +15,7 @@ spline envelopes, mean subtraction) is one numba-compiled function, :func:`_sift
 translated operation by operation from the numpy code kept here as its reference.  numba caches
 the compiled code on disk (``__pycache__`` next to this file, else the user's cache directory;
 without any writable location it compiles in memory): the first sift of a process costs about
-0.5 s with the cache and several seconds without (BENCHMARKS.md, issue 2).
+0.3 s with the cache and several seconds without (BENCHMARKS.md, issue 2).
 """
 
 from __future__ import annotations
