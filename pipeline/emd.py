@@ -469,7 +469,7 @@ class _BoundedEMD(EMD):
     Attributes
     ----------
     compiled : sift with the compiled kernel (:func:`_sift_step`, the default) or with the numpy
-        code it was translated from (the reference; same numbers, about 10 times slower).
+        code it was translated from (the reference; same numbers, several times slower).
     """
 
     compiled = True
