@@ -10,7 +10,12 @@ number of IMFs: the cost is then at most ``sifts * max_imfs`` sifts.  The first 
 run are identical to those of an uncapped run with the same stop rule.
 
 The sifting itself is PyEMD's algorithm run by a lean loop (:class:`_BoundedEMD`) that gives
-PyEMD's IMFs bit for bit at a fraction of its numpy call overhead per sift.
+PyEMD's IMFs bit for bit at a fraction of its cost: each sift (extrema, boundary mirroring, both
+spline envelopes, mean subtraction) is one numba-compiled function, :func:`_sift_step`,
+translated operation by operation from the numpy code kept here as its reference.  numba caches
+the compiled code on disk (``__pycache__`` next to this file, else the user's cache directory;
+without any writable location it compiles in memory): the first sift of a process costs about
+0.3 s with the cache and several seconds without (BENCHMARKS.md, issue 2).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from PyEMD import EMD
 from scipy.linalg.lapack import dgtsv
 
@@ -189,6 +195,262 @@ def _mirror_indices(s: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: in
     return lmax, lmin, lsym, rmax, rmin, rsym
 
 
+# --- compiled sift -------------------------------------------------------------------------------
+# One sift of the lean loop (extrema, boundary mirroring, both envelopes, mean subtraction) as one
+# compiled function.  It performs the same IEEE operations in the same order as the numpy code
+# above (itself scipy's CubicSpline / PPoly and LAPACK's dgtsv, operation by operation), so it
+# gives the same numbers; numba compiles without fastmath, so nothing is reassociated or fused.
+
+
+def _compile(function):
+    """``numba.njit`` with an on-disk cache when a cache directory is writable, without otherwise
+    (numba refuses ``cache=True`` when it finds no writable cache location)."""
+    try:
+        return njit(cache=True)(function)
+    except RuntimeError:  # pragma: no cover - read-only installation and home
+        return njit(cache=False)(function)
+
+
+@_compile
+def _gtsv(dl, d, du, b):  # pragma: no cover - compiled
+    """LAPACK ``dgtsv`` (one right-hand side) in place: Gaussian elimination with partial pivoting
+    on a tridiagonal system, the reference algorithm step by step.  Returns ``False`` on a zero
+    pivot (LAPACK's ``info > 0``)."""
+    n = d.size
+    for i in range(n - 1):
+        if abs(d[i]) >= abs(dl[i]):  # no row interchange
+            if d[i] == 0.0:
+                return False
+            fact = dl[i] / d[i]
+            d[i + 1] = d[i + 1] - fact * du[i]
+            b[i + 1] = b[i + 1] - fact * b[i]
+            dl[i] = 0.0
+        else:  # interchange rows i and i + 1
+            fact = d[i] / dl[i]
+            d[i] = dl[i]
+            temp = d[i + 1]
+            d[i + 1] = du[i] - fact * temp
+            if i < n - 2:
+                dl[i] = du[i + 1]
+                du[i + 1] = -fact * dl[i]
+            du[i] = temp
+            temp = b[i]
+            b[i] = b[i + 1]
+            b[i + 1] = temp - fact * b[i + 1]
+    if d[n - 1] == 0.0:
+        return False
+    b[n - 1] = b[n - 1] / d[n - 1]
+    if n > 1:
+        b[n - 2] = (b[n - 2] - du[n - 2] * b[n - 1]) / d[n - 2]
+    for i in range(n - 3, -1, -1):
+        b[i] = (b[i] - du[i] * b[i + 1] - dl[i] * b[i + 2]) / d[i]
+    return True
+
+
+@_compile
+def _spline_fit(x, y):  # pragma: no cover - compiled
+    """:func:`_not_a_knot_coefficients` for one spline (``x.size >= 4``): slopes ``s`` at the
+    knots and ``c2``, ``c3`` per segment, after a flag that is ``False`` on a singular system."""
+    k = x.size
+    dx = np.empty(k - 1)
+    slope = np.empty(k - 1)
+    for j in range(k - 1):
+        dx[j] = x[j + 1] - x[j]
+        slope[j] = (y[j + 1] - y[j]) / dx[j]
+    dl, d, du, b = np.empty(k - 1), np.empty(k), np.empty(k - 1), np.empty(k)
+    for i in range(1, k - 1):
+        d[i] = (dx[i - 1] + dx[i]) * 2
+        du[i] = dx[i - 1]
+        dl[i - 1] = dx[i]
+        b[i] = (dx[i] * slope[i - 1] + dx[i - 1] * slope[i]) * 3
+    dx0, dx1, w = x[1] - x[0], x[2] - x[1], x[2] - x[0]  # not-a-knot at the first interior knot
+    d[0], du[0] = dx1, w
+    b[0] = ((dx0 + 2 * w) * dx1 * slope[0] + dx0 * dx0 * slope[1]) / w
+    dx0, dx1, w = x[k - 2] - x[k - 3], x[k - 1] - x[k - 2], x[k - 1] - x[k - 3]  # and at the last
+    d[k - 1], dl[k - 2] = dx0, w
+    b[k - 1] = (dx1 * dx1 * slope[k - 3] + (2 * w + dx1) * dx0 * slope[k - 2]) / w
+    c2, c3 = np.empty(k - 1), np.empty(k - 1)
+    if not _gtsv(dl, d, du, b):
+        return False, b, c2, c3
+    for j in range(k - 1):
+        t = (b[j] + b[j + 1] - 2 * slope[j]) / dx[j]
+        c2[j] = (slope[j] - b[j]) / dx[j] - t
+        c3[j] = t / dx[j]
+    return True, b, c2, c3
+
+
+@_compile
+def _spline_into(out, x, y, s, c2, c3):  # pragma: no cover - compiled
+    """A spline at ``t = 0, 1, ..., out.size - 1`` into ``out``, segment by segment as
+    :func:`_evaluate` assigns the points (``x[j] <= t < x[j + 1]``; the last segment up to the end)
+    and summed in its order; ``x[0] <= 0``, integer-valued knots."""
+    n, last = out.size, x.size - 2
+    start = 0
+    for j in range(last + 1):
+        stop = n if j == last else min(max(int(x[j + 1]), 0), n)
+        xj, yj, sj, c2j, c3j = x[j], y[j], s[j], c2[j], c3[j]
+        for i in range(start, stop):
+            u = i - xj
+            u2 = u * u
+            out[i] = sj * u + yj + c2j * u2 + c3j * (u2 * u)
+        start = max(start, stop)
+
+
+@_compile
+def _put_reversed(row, src, lo, hi, first, last):  # pragma: no cover - compiled
+    """``row[:count] = [first] + src[lo:hi][::-1] + [last]`` (``-1``: no ``first`` / ``last``);
+    returns ``count``."""
+    count = 0
+    if first >= 0:
+        row[0] = first
+        count = 1
+    for i in range(hi - 1, lo - 1, -1):
+        row[count] = src[i]
+        count += 1
+    if last >= 0:
+        row[count] = last
+        count += 1
+    return count
+
+
+@_compile
+def _mirror(s, imax, imin, nbsym, pts, count):  # pragma: no cover - compiled
+    """:func:`_mirror_indices` on arrays (``nbsym >= 1``): the mirrored extrema go to the rows
+    of ``pts`` (0 left maxima, 1 left minima, 2 right maxima, 3 right minima; ``count`` holds
+    their numbers).  Returns ``(ok, lsym, rsym)``, ``ok`` False where that returns None."""
+    n, n_hi, n_lo, nb = s.size, imax.size, imin.size, nbsym
+    if imax[0] < imin[0]:
+        if s[0] > s[imin[0]]:
+            count[0] = _put_reversed(pts[0], imax, 1, min(n_hi, nb + 1), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+            lsym = imax[0]
+        else:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb - 1), -1, 0)
+            lsym = 0
+    else:
+        if s[0] < s[imax[0]]:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+            count[1] = _put_reversed(pts[1], imin, 1, min(n_lo, nb + 1), -1, -1)
+            lsym = imin[0]
+        else:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb - 1), -1, 0)
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+            lsym = 0
+    if imax[n_hi - 1] < imin[n_lo - 1]:
+        if s[n - 1] < s[imax[n_hi - 1]]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb - 1, 0), n_lo - 1, -1, -1)
+            rsym = imin[n_lo - 1]
+        else:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb + 1, 0), n_hi, n - 1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+            rsym = n - 1
+    else:
+        if s[n - 1] > s[imin[n_lo - 1]]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb - 1, 0), n_hi - 1, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+            rsym = imax[n_hi - 1]
+        else:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb + 1, 0), n_lo, n - 1, -1)
+            rsym = n - 1
+    if count[0] == 0 or count[1] == 0 or count[2] == 0 or count[3] == 0:
+        return False, lsym, rsym
+    # mirrored points that fall inside the window: mirror about the window's end instead
+    if 2 * lsym - pts[1, 0] > 0 or 2 * lsym - pts[0, 0] > 0:
+        if lsym == imax[0]:
+            count[0] = _put_reversed(pts[0], imax, 0, min(n_hi, nb), -1, -1)
+        else:
+            count[1] = _put_reversed(pts[1], imin, 0, min(n_lo, nb), -1, -1)
+        if lsym == 0:
+            return False, lsym, rsym
+        lsym = 0
+    if 2 * rsym - pts[3, count[3] - 1] < n - 1 or 2 * rsym - pts[2, count[2] - 1] < n - 1:
+        if rsym == imax[n_hi - 1]:
+            count[2] = _put_reversed(pts[2], imax, max(n_hi - nb, 0), n_hi, -1, -1)
+        else:
+            count[3] = _put_reversed(pts[3], imin, max(n_lo - nb, 0), n_lo, -1, -1)
+        if rsym == n - 1:
+            return False, lsym, rsym
+        rsym = n - 1
+    return True, lsym, rsym
+
+
+@_compile
+def _knots(s, left, a, inner, right, c, lsym, rsym):  # pragma: no cover - compiled
+    """Knot positions and values of one envelope: the extrema ``inner`` with the mirrored ones
+    (``left[:a]`` about ``lsym``, ``right[:c]`` about ``rsym``), after a flag that is ``False``
+    unless they are at least 4, cover ``[0, n - 1]`` and increase (the checks of
+    :meth:`_BoundedEMD._envelope_mean`)."""
+    n, b = s.size, inner.size
+    k = a + b + c
+    x, y = np.empty(k), np.empty(k)
+    if k <= 3 or 2 * lsym - left[0] > 0 or 2 * rsym - right[c - 1] < n - 1:
+        return False, x, y
+    if 2 * lsym - left[a - 1] >= inner[0] or inner[b - 1] >= 2 * rsym - right[0]:
+        return False, x, y
+    for j in range(k):
+        if j < a:
+            i = left[j]
+            x[j] = 2 * lsym - i
+        elif j < a + b:
+            i = inner[j - a]
+            x[j] = i
+        else:
+            i = right[j - a - b]
+            x[j] = 2 * rsym - i
+        y[j] = s[i]
+    return True, x, y
+
+
+@_compile
+def _sift_step(imf, nbsym):  # pragma: no cover - compiled
+    """One sift of ``imf`` in place.  Returns ``(ext_no, done)``: ``ext_no`` the number of
+    extrema (``-1`` when the simple extrema do not apply: flat step, underflowing difference,
+    fewer than 3 samples); ``done`` whether ``imf`` was sifted (``False`` when ``ext_no <= 2``
+    or one of PyEMD's special rules applies: then ``imf`` is untouched)."""
+    n = imf.size
+    if n < 3:
+        return -1, False
+    imax, imin = np.empty(n, np.int64), np.empty(n, np.int64)
+    n_hi = n_lo = 0
+    prev = imf[1] - imf[0]
+    small = not abs(prev) >= 1e-160
+    for i in range(1, n - 1):  # branch-free: noisy windows turn at random
+        nxt = imf[i + 1] - imf[i]
+        small |= not abs(nxt) >= 1e-160
+        rise, rise_next = prev > 0, nxt > 0
+        imax[n_hi] = i
+        n_hi += rise and not rise_next
+        imin[n_lo] = i
+        n_lo += rise_next and not rise
+        prev = nxt
+    if small:  # a flat step (or NaN): PyEMD's plateau rules
+        return -1, False
+    if n_hi + n_lo <= 2:
+        return n_hi + n_lo, False
+    imax, imin = imax[:n_hi], imin[:n_lo]
+    pts, count = np.empty((4, nbsym + 1), np.int64), np.empty(4, np.int64)
+    ok, lsym, rsym = _mirror(imf, imax, imin, nbsym, pts, count)
+    if not ok:
+        return n_hi + n_lo, False
+    ok_u, xu, yu = _knots(imf, pts[0], count[0], imax, pts[2], count[2], lsym, rsym)
+    ok_l, xl, yl = _knots(imf, pts[1], count[1], imin, pts[3], count[3], lsym, rsym)
+    if not (ok_u and ok_l):
+        return n_hi + n_lo, False
+    ok_u, su, c2u, c3u = _spline_fit(xu, yu)
+    ok_l, sl, c2l, c3l = _spline_fit(xl, yl)
+    if not (ok_u and ok_l):
+        return n_hi + n_lo, False
+    upper_env, lower_env = np.empty(n), np.empty(n)
+    _spline_into(upper_env, xu, yu, su, c2u, c3u)
+    _spline_into(lower_env, xl, yl, sl, c2l, c3l)
+    for i in range(n):
+        imf[i] -= (upper_env[i] + lower_env[i]) * 0.5
+    return n_hi + n_lo, True
+
+
 class _BoundedEMD(EMD):
     """PyEMD's EMD with its fixed-sifting (``FIXE``) loop rewritten lean, same numbers.
 
@@ -203,7 +465,14 @@ class _BoundedEMD(EMD):
     than 4 knots in an envelope, too few extrema to mirror) that sift is done by PyEMD's own
     methods.  The arithmetic follows PyEMD and scipy operation by operation, so the IMFs come
     out bit for bit; tests/test_pipeline_emd.py checks them against stock PyEMD (to 1e-9).
+
+    Attributes
+    ----------
+    compiled : sift with the compiled kernel (:func:`_sift_step`, the default) or with the numpy
+        code it was translated from (the reference; same numbers, several times slower).
     """
+
+    compiled = True
 
     def _envelope_mean(self, T: np.ndarray, TT: np.ndarray, imf: np.ndarray, extrema) -> np.ndarray:
         """Mean of the upper and lower envelopes of ``imf`` (PyEMD's ``extract_max_min_spline``):
@@ -243,6 +512,24 @@ class _BoundedEMD(EMD):
         max_env, min_env, _, _ = EMD.extract_max_min_spline(self, T, imf)
         return 0.5 * (max_env + min_env)
 
+    def _sift_once(self, T: np.ndarray, TT: np.ndarray, imf: np.ndarray) -> int:
+        """One sift of ``imf`` in place, unless it has 2 extrema or fewer (a trend: untouched);
+        returns its number of extrema.  The compiled :func:`_sift_step` when :attr:`compiled`,
+        the numpy code otherwise and wherever one of PyEMD's special rules applies."""
+        if self.compiled and self.nbsym >= 1:
+            ext_no, done = _sift_step(imf, self.nbsym)
+            if done or 0 <= ext_no <= 2:
+                return ext_no
+        extrema = _simple_extrema(imf)
+        if extrema is None:
+            found = EMD._find_extrema_simple(T, imf)
+            ext_no = len(found[0]) + len(found[2])
+        else:
+            ext_no = extrema[0].size + extrema[1].size
+        if ext_no > 2:
+            imf -= self._envelope_mean(T, TT, imf, extrema)
+        return ext_no
+
     def _lean(self, S) -> bool:
         """Whether :meth:`sift` applies: fixed sifting, PyEMD's simple extrema and cubic
         envelopes, float64 samples (PyEMD computes in the input's precision)."""
@@ -277,16 +564,10 @@ class _BoundedEMD(EMD):
                 it += 1
                 if it >= self.MAX_ITERATION:
                     break
-                extrema = _simple_extrema(imf)
-                if extrema is None:
-                    found = EMD._find_extrema_simple(T, imf)
-                    ext_no = len(found[0]) + len(found[2])
-                else:
-                    ext_no = extrema[0].size + extrema[1].size
+                ext_no = self._sift_once(T, TT, imf)
                 if ext_no <= 2:  # a trend: the decomposition is over
                     finished = True
                     break
-                imf -= self._envelope_mean(T, TT, imf, extrema)
                 if it >= self.FIXE:
                     break
             imfs.append(imf)
