@@ -41,7 +41,27 @@ class StickSlip:
     test: StictionTest | None = None
 
 
-MAX_SAMPLES = 1024
+MAX_SAMPLES = 768
+MIN_MONOTONIC = 0.5
+
+
+def _monotonic_share(op: np.ndarray, stem: np.ndarray) -> float:
+    """Share of the (smoothed) OP's path length while the fitted stem is held that is net
+    travel: 1 when the OP ramps one way through every stuck phase (integral action against a
+    stuck stem), small when it goes back and forth (a load the valve follows and compensates)."""
+    k = max(3, op.size // 40)
+    c = np.cumsum(np.r_[0.0, op])
+    ops = np.r_[np.full(k // 2, np.nan), (c[k:] - c[:-k]) / k, np.full(op.size - (op.size - k + 1) - k // 2, np.nan)]
+    held = np.r_[False, np.diff(stem) == 0, False]
+    edges = np.flatnonzero(np.diff(held.astype(np.int8)))
+    net = path = 0.0
+    for a, b in zip(edges[::2], edges[1::2]):  # stem[a-1 .. b-1] constant
+        seg = ops[max(a - 1, 0):b]
+        seg = seg[np.isfinite(seg)]
+        if seg.size > k:
+            net += abs(seg[-1] - seg[0])
+            path += np.abs(np.diff(seg)).sum()
+    return net / path if path > 0 else 0.0
 
 
 def stick_slip_episodes(pv: np.ndarray, op: np.ndarray) -> StickSlip | None:
@@ -66,5 +86,9 @@ def stick_slip_episodes(pv: np.ndarray, op: np.ndarray) -> StickSlip | None:
         return None
     if not t.sticking:
         return StickSlip(0, 0.0, t.reason, t)
+    mono = _monotonic_share(op, t.stem)
+    if mono < MIN_MONOTONIC:
+        return StickSlip(0, 0.0, f"{t.reason}, but the OP goes back and forth while the stem is held "
+                         f"({mono:.0%} of its travel is net: a disturbance compensated, not a stuck valve)", t)
     episodes = max(1, t.slips)
     return StickSlip(episodes, t.stuck_fraction, f"{t.reason}; {episodes} slip(s) of the fitted stem", t)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from models.loop import FOPDT, LoopScenario, PIController, SetpointStep, simulate_loop
+from models.loop import FOPDT, LoopScenario, PIController, SetpointStep, Sinusoid, simulate_loop
 from models.valves import KarnoppLoopSpec
 from pipeline.diagnosis import diagnose_window
 from pipeline.hammerstein import _time_constants, hammerstein_fit, stiction_stem, stiction_test
@@ -77,3 +77,20 @@ def test_long_windows_are_averaged_down_and_flat_signals_give_nothing():
     found = stick_slip_episodes(np.repeat(pv, 4), np.repeat(op, 4))  # 3004 samples at 4x the rate
     assert found.episodes >= 1
     assert stick_slip_episodes(np.ones(500), op[:500]) is None
+
+
+@pytest.mark.xfail(strict=True, reason="known limitation (ACCURACY.md, issue 3): in closed loop the OP is "
+                   "correlated with the disturbance it cancels, and a deadband model of OP -> PV fits that better "
+                   "than the linear one")
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_compensated_disturbance_is_no_stick_slip(seed):
+    """Healthy valve, well-tuned PI cancelling a wandering load (three sinusoids at the PV):
+    no stick-slip should be reported."""
+    plant = FOPDT(1.5, 10.0, 3.0)
+    loads = tuple(Sinusoid(1.0, 2 * np.pi / p, ph) for p, ph in ((80.0, 0.3), (200.0, 2.0), (500.0, 4.0)))
+    steps = (SetpointStep(0.0, 50.0), SetpointStep(1000.0, 55.0))
+    sc = LoopScenario(plant=plant, controller=PIController(1.11, 0.111), setpoint_steps=steps, disturbances=loads,
+                      measurement_noise_std=0.1, load_noise_std=0.05, duration_s=1502.0)
+    sim = simulate_loop(sc, seed=seed)
+    found = stick_slip_episodes(sim.pv[-751:], sim.op[-751:])
+    assert found is None or found.episodes == 0, found
