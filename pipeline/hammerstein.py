@@ -20,20 +20,23 @@ least squares (for each pole and dead time the gain and offset are linear; the
 cross-correlations of every candidate stem with the PV at every dead time come from one
 matrix product per pole).  The linear model is the ``fs = fd = 0`` member of the family.
 
-Decision (:func:`stiction_test`): the stiction model must explain the PV better than the
+Decision (:func:`stiction_test`): PV and stems are first high-passed alike (less an
+``n/8``-sample moving average; a linear filter on both sides keeps the linear relation and
+drops slow unmeasured loads).  The stiction model must then explain the PV better than the
 linear model by a likelihood ratio that is significant after accounting for the residuals'
 autocorrelation (effective sample size ``n (1 - r1) / (1 + r1)``, Bartlett 1946, with ``r1``
-the lag-1 autocorrelation of the Hammerstein residual), penalised as BIC for the two extra
-parameters (Schwarz 1978), *and* the fitted static friction ``fs`` must exceed the OP's
-noise by ``z`` standard deviations (a "deadband" within the OP's noise is a noise filter, not a
-valve fault), *and* the stiction model must remove a material share of the linear model's
-error (``min_gain``).  All three are fixed defaults chosen on planted loops
-(``tests/bench/accuracy_sim.py``), not on plant data.
+the lag-1 autocorrelation of the Hammerstein residual), penalised as BIC (``2 ln n_eff``,
+Schwarz 1978); the static friction searched is at least a tenth of the window's OP travel
+(``min_share``) and ``z`` OP noise deviations (a "deadband" within the OP's noise, or a small
+share of the control action, is a model mismatch more often than a valve fault).  Defaults
+chosen on planted loops (``tests/bench/accuracy_sim.py``), not on plant data.
 
-What it cannot tell apart: a deadband (backlash, ``J = 0``) is the same family; the finding is
-"the valve does not follow the OP (stiction or deadband)".  A PV moved by an unmeasured load
-that happens to line up with the OP's reversals can read as stiction; a PV that does not depend
-on the OP within the window (valve stuck throughout) gives no evidence either way.
+What it cannot tell apart: a deadband (backlash, ``fd = fs``) is the same family; the finding
+is "the valve does not follow the OP (stiction or deadband)".  In closed loop the OP is
+correlated with the disturbances it cancels: while the stem is held, "the stem did not move"
+and "it moved and a disturbance cancelled it" predict the same PV, so a compensated load can
+read as stiction (:mod:`pipeline.stickslip` adds a guard); a PV that does not depend on the OP
+within the window (valve stuck throughout) gives no evidence either way.
 """
 
 from __future__ import annotations

@@ -94,3 +94,14 @@ def test_a_compensated_disturbance_is_no_stick_slip(seed):
     sim = simulate_loop(sc, seed=seed)
     found = stick_slip_episodes(sim.pv[-751:], sim.op[-751:])
     assert found is None or found.episodes == 0, found
+
+
+def test_monotonic_share_of_the_op_while_the_stem_is_held():
+    from pipeline.stickslip import _monotonic_share
+
+    n = 800
+    stem = np.zeros(n)  # held throughout
+    assert _monotonic_share(np.linspace(0.0, 5.0, n), stem) == pytest.approx(1.0)
+    # back and forth: 4 periods of a sine, net travel ~0, path 16 amplitudes
+    assert _monotonic_share(np.sin(2 * np.pi * 4 * np.arange(n) / n), stem) < 0.05
+    assert _monotonic_share(np.linspace(0.0, 5.0, n), np.arange(n, dtype=float)) == 0.0  # never held
