@@ -10,7 +10,8 @@ when it is not significant or smaller than a sticking valve makes, ``uncertain``
 significance is borderline (alpha < p <= 2 alpha with a large DNL) or a data-quality guard
 fails.  When the analysed signal does not pass the gate but the OP does, the OP's period is
 used.  A window that does not oscillate is searched for stick-slip episodes
-(:mod:`pipeline.stickslip`) when PV, OP and SP are known.
+(:mod:`pipeline.stickslip`: a Hammerstein stiction model of OP → PV against a linear one)
+when PV, OP and SP are known.
 
 ``paper``: the method of Aftab, Hovd, Huang & Sivalingam (2016) as published:
 a window that oscillates (Thornhill et al. 2003 gate, :mod:`pipeline.gate`) is decomposed by
@@ -208,8 +209,8 @@ def diagnose_window(
     gate = oscillation_gate(x, fs=fs, config=config.gate)
     if config.method == "robust":
         diag = _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op, notes=notes)
-        if diag.verdict == "not_oscillating" and op is not None and sp is not None:
-            diag = _with_stick_slip(diag, pv, op, sp, config)
+        if diag.verdict == "not_oscillating" and op is not None and sp is not None:  # x is the PV
+            diag = _with_stick_slip(diag, pv, op, config)
         return diag
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason, gate, n_filled=n_filled)
@@ -274,10 +275,11 @@ def _usable_op(op: np.ndarray | None, x: np.ndarray, config: DiagnosisConfig) ->
     return detrend_linear(filled)
 
 
-def _with_stick_slip(diag: WindowDiagnosis, pv, op, sp, config: DiagnosisConfig) -> WindowDiagnosis:
-    """Add the stuck-valve episodes (:mod:`pipeline.stickslip`) to a non-oscillating window."""
+def _with_stick_slip(diag: WindowDiagnosis, pv, op, config: DiagnosisConfig) -> WindowDiagnosis:
+    """Add the stuck-valve episodes (:mod:`pipeline.stickslip`) to a non-oscillating window
+    whose PV and OP are both known."""
     series = []
-    for v in (pv, op, sp):
+    for v in (pv, op):
         v = np.asarray(v, dtype=np.float64)
         if v.shape != np.shape(pv):
             return diag

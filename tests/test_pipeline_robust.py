@@ -1,18 +1,17 @@
-"""Robust test, surrogates, data-quality guards, stick-slip episodes and the loop-scale Karnopp
-valve, against planted truth and independent computations."""
+"""Robust test, surrogates, data-quality guards and the loop-scale Karnopp valve, against
+planted truth and independent computations (stick-slip: tests/test_stickslip.py)."""
 
 import numpy as np
 import pytest
 from scipy import fft, signal
 
-from models.valves import KarnoppLoopSpec, KarnoppLoopValve, make_valve
+from models.valves import KarnoppLoopSpec, KarnoppLoopValve
 from pipeline.diagnosis import DiagnosisConfig, diagnose_window
 from pipeline.dnl import imf_dnl
 from pipeline.errors import PipelineConfigError
 from pipeline.gate import acf_standard_error
 from pipeline.quality import compression, quantisation, saturation
 from pipeline.robust import RobustConfig, mean_wave, robust_dnl_test, wave_dnl
-from pipeline.stickslip import stick_slip_episodes
 from pipeline.surrogates import harmonic_free_amplitudes, phase_randomised
 
 N = 4096
@@ -155,35 +154,6 @@ def test_setpoint_change_switches_to_control_error():
     assert "control error" not in d.reason
 
 
-def stuck_loop(n: int = 750, *, stiction: bool, seed: int = 0):
-    """A flow loop (PV = stem position, no lag) under PI after a set-point step, with a
-    two-parameter sticking valve or a healthy one; PV, OP, SP with noise."""
-    rng = np.random.default_rng(seed)
-    sp = np.where(np.arange(n) < 100, 0.0, 3.0)
-    valve = make_valve(None) if not stiction else make_valve(__import__("models.valves", fromlist=["x"]).ChoudhuryStictionSpec(4.0, 3.0))
-    valve.update(0.0, 1.0)
-    pv = np.zeros(n)
-    op = np.zeros(n)
-    integ, y = 0.0, 0.0
-    for k in range(1, n):
-        meas = y + 0.05 * rng.standard_normal()
-        e = sp[k] - meas
-        integ += 0.01 * e
-        op[k] = 0.2 * e + integ
-        y = valve.update(op[k], 1.0)
-        pv[k] = meas
-    return pv, op, sp
-
-
-def test_stick_slip_episodes_found_in_a_sticking_loop_only():
-    pv, op, sp = stuck_loop(stiction=True)
-    found = stick_slip_episodes(pv, op, sp)
-    assert found is not None and found.episodes >= 1, found
-    pv, op, sp = stuck_loop(stiction=False)
-    found = stick_slip_episodes(pv, op, sp)
-    assert found is not None and found.episodes == 0, found
-
-
 def test_karnopp_loop_valve_sticks_breaks_away_at_fs_and_jumps_by_fs_minus_fc():
     v = KarnoppLoopValve(fc=2.0, fs=3.0, tau_s=0.02, dv=0.5)
     assert v.update(0.0, 0.1) == 0.0
@@ -204,28 +174,3 @@ def test_karnopp_loop_spec_from_the_paper_valve():
     per_pct = SA_M2 * (206.84e3 - 41.74e3) / 100  # newton per % of the pressure span
     assert spec.fc == pytest.approx(152.7 / per_pct)
     assert spec.tau_s == pytest.approx(4865.0 / 2.05e5)
-
-
-def test_no_stick_slip_when_an_integrating_pv_turns_round():
-    """Level-like PV (integral of OP - balance): while the OP ramps through the balance the
-    PV is momentarily steady away from the SP, then moves on; no jump in its rate, no episode."""
-    rng = np.random.default_rng(5)
-    n = 750
-    op = np.linspace(-3.0, 3.0, n)
-    pv = np.cumsum(op) * 0.02 + 0.05 * rng.standard_normal(n)
-    sp = np.full(n, pv.max() + 5.0)
-    found = stick_slip_episodes(pv, op, sp)
-    assert found is None or found.episodes == 0, found
-
-
-def test_no_stick_slip_when_a_set_point_step_moves_the_pv():
-    """Healthy valve, OP ramping slowly with the PV creeping, then an SP step moves both:
-    the PV's move is explained by the set point, not a slip."""
-    rng = np.random.default_rng(6)
-    n = 750
-    t = np.arange(n)
-    sp = np.where(t < 400, 10.0, 14.0)
-    pv = np.where(t < 400, 8.0 + 0.001 * t, 13.0 - np.exp(-(t - 400) / 20.0)) + 0.05 * rng.standard_normal(n)
-    op = np.where(t < 400, 0.01 * t, 6.0 + 0.005 * (t - 400)) + 0.02 * rng.standard_normal(n)
-    found = stick_slip_episodes(pv, op, sp)
-    assert found is None or found.episodes == 0, found

@@ -337,9 +337,12 @@ def test_gate_hard_cases():
 # ------------------------------------------------------------------ stick-slip episodes (no limit cycle)
 STICK_CASES = {  # case: truth (the valve sticks?)
     "stiction, slow PI, SP steps": True,
+    "stiction (Karnopp), slow PI, SP steps": True,
     "healthy, slow PI, SP steps": False,
     "healthy, near-integrating plant": False,
     "healthy, SIMC PI, SP steps": False,
+    "healthy, slow PI, SP steps, slow load swing": False,
+    "healthy, SIMC PI, SP steps, disturbances compensated": False,
 }
 
 
@@ -351,7 +354,11 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
     and load noise 0-2 % (standard deviations, PV / OP units).  Slow PI: the SIMC gains
     times 0.2-0.6 (proportional) and 0.1-0.5 (integral), so that the OP ramps for a long
     time before a sticking valve breaks away.  Stiction: the two-parameter model with
-    S 2-8 %, J 0-0.5 S.  Windows whose stem limit-cycles (>= 4 cycles) are drawn again: the
+    S 2-8 %, J 0-0.5 S (with a noisy OP its reversal rule can hold the stem while the OP
+    travels many S), or a Karnopp valve (force balance: F_s 1-6 %, F_c 0.2-0.8 F_s).  Slow
+    load swing: a sinusoidal disturbance of period 300-1500 s, amplitude 1-5, on the PV;
+    disturbances compensated: three sinusoids of period 50-750 s, amplitude 0.3-2, that the
+    SIMC loop largely cancels (the OP wanders, the PV stays near the set point).  Windows whose stem limit-cycles (>= 4 cycles) are drawn again: the
     detector is for sticking valves *without* a limit cycle."""
     for _ in range(20):
         tau = float(np.exp(rng.uniform(np.log(5), np.log(40))))
@@ -371,9 +378,19 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
         kw = dict(plant=plant, controller=pi, setpoint_steps=tuple(steps), duration_s=1502.0,
                   measurement_noise_std=float(rng.uniform(0.005, 0.05)) * 10,
                   load_noise_std=float(rng.uniform(0.0, 0.02)) * 10)
-        if case.startswith("stiction"):
+        if case.startswith("stiction,"):
             s = float(rng.uniform(2, 8))
             kw["valve"] = ChoudhuryStictionSpec(S=s, J=s * float(rng.uniform(0.0, 0.5)))
+        if case.startswith("stiction (Karnopp)"):
+            f_s = float(rng.uniform(1, 6))
+            kw["valve"] = KarnoppLoopSpec(fc=f_s * float(rng.uniform(0.2, 0.8)), fs=f_s)
+        if "compensated" in case:  # a wandering load the OP cancels (PV near the SP)
+            kw["disturbances"] = tuple(
+                Sinusoid(float(rng.uniform(0.3, 2)), 2 * np.pi / float(np.exp(rng.uniform(np.log(50), np.log(750)))),
+                         float(rng.uniform(0, 2 * np.pi))) for _ in range(3))
+        if "load swing" in case:
+            period = float(rng.uniform(300, 1500))
+            kw["disturbances"] = (Sinusoid(float(rng.uniform(1, 5)), 2 * np.pi / period, float(rng.uniform(0, 2 * np.pi))),)
         sim = simulate_loop(LoopScenario(**kw), seed=seed)
         if not np.all(np.isfinite(sim.pv)):
             continue
@@ -393,7 +410,7 @@ def stick_benchmark(n_per_case: int, seed: int):
         for i in range(n_per_case):
             w = stick_case(case, rng, seed + i)
             if w is not None:
-                r = stick_slip_episodes(*w)
+                r = stick_slip_episodes(w[0], w[1])
                 found[case].append(bool(r and r.episodes))
     tpr = np.mean([v for c, t in STICK_CASES.items() if t for v in found[c]])
     tnr = 1 - np.mean([v for c, t in STICK_CASES.items() if not t for v in found[c]])

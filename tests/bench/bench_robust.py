@@ -80,3 +80,36 @@ def test_robust_cost_per_oscillating_window():
               f"cpu median {1e3 * np.median(cr):.1f} ms, p95 {1e3 * np.percentile(cr, 95):.1f} ms; "
               f"robust/paper cpu ratio of medians {np.median(cr) / np.median(cp):.1f}")
     assert len(osc) > 10
+
+
+@pytest.mark.bench
+@pytest.mark.timeout(3600)
+def test_stick_slip_cost_per_non_oscillating_window():
+    """Cost of the Hammerstein stick-slip test (pipeline.stickslip) that runs in every
+    non-oscillating window with PV, OP and SP: planted 751-sample windows of the stick-slip
+    bench (accuracy_sim.STICK_CASES) and the whole diagnosis of the same windows."""
+    from pipeline.stickslip import stick_slip_episodes
+
+    from .accuracy_sim import STICK_CASES, stick_case
+
+    rng = np.random.default_rng(5)
+    wins = [w for c in STICK_CASES for i in range(8) if (w := stick_case(c, rng, 500 + i)) is not None]
+    test_cpu, diag_cpu = [], []
+    for pv, op, sp in wins:
+        c0 = time.process_time()
+        stick_slip_episodes(pv, op)
+        test_cpu.append(time.process_time() - c0)
+        c0 = time.process_time()
+        diagnose_window(pv, fs=1.0, op=op, sp=sp)
+        diag_cpu.append(time.process_time() - c0)
+    long = [np.tile(w[0], 6)[:N] for w in wins[:8]], [np.tile(w[1], 6)[:N] for w in wins[:8]]
+    long_cpu = []
+    for pv, op in zip(*long):
+        c0 = time.process_time()
+        stick_slip_episodes(pv, op)
+        long_cpu.append(time.process_time() - c0)
+    print(f"\n[bench_robust stick-slip] {machine_note()}, load average {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    for label, v in (("stick-slip test, 751 samples", test_cpu), ("whole diagnosis, 751 samples", diag_cpu),
+                     ("stick-slip test, 4096 samples (block-averaged)", long_cpu)):
+        print(f"{label} ({len(v)} windows): cpu median {1e3 * np.median(v):.1f} ms, p95 {1e3 * np.percentile(v, 95):.1f} ms")
+    assert len(wins) > 20

@@ -1,0 +1,107 @@
+"""Stick-slip without a limit cycle: the Hammerstein (stiction + linear) test of OP -> PV,
+against hand computations and planted loops (models.loop)."""
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from models.loop import FOPDT, LoopScenario, PIController, SetpointStep, Sinusoid, simulate_loop
+from models.valves import KarnoppLoopSpec
+from pipeline.diagnosis import diagnose_window
+from pipeline.hammerstein import _time_constants, hammerstein_fit, stiction_stem, stiction_test
+from pipeline.stickslip import stick_slip_episodes
+
+
+def test_stiction_stem_by_hand():
+    """He et al. (2007): stuck while |op - x| <= fs, then x = op - sign * fd."""
+    op = np.array([0.0, 0.5, 1.0, 1.2, 1.4, 1.8, 1.0, 0.0])
+    x = stiction_stem(op, np.array([1.0, 0.0]), np.array([0.5, 0.0]))
+    np.testing.assert_allclose(x[0], [0, 0, 0, 0.7, 0.7, 1.3, 1.3, 0.5])
+    np.testing.assert_allclose(x[1], op)  # no friction: the stem is the OP
+    # a net force at the start: the stem sits 0.8 below the OP and breaks away sooner
+    x = stiction_stem(op, np.array([1.0]), np.array([0.5]), np.array([0.8]))
+    np.testing.assert_allclose(x[0], [-0.8, 0.0, 0.0, 0.7, 0.7, 1.3, 1.3, 0.5])
+
+
+def test_hammerstein_fit_recovers_a_planted_first_order_lag_with_dead_time():
+    rng = np.random.default_rng(0)
+    n, D = 600, 40
+    op = np.cumsum(rng.standard_normal(n))
+    a = _time_constants(n)[5]
+    pv = 3.0 + 2.0 * lfilter([1 - a], [1, -a], np.r_[np.zeros(7), op[:-7]] - op[0]) + 0.01 * rng.standard_normal(n)
+    fit = hammerstein_fit(pv, np.vstack([op, np.roll(op, 50)]), max_dead_time=D)
+    assert fit.dead_time[0] == 7 and fit.pole[0] == pytest.approx(a)
+    assert fit.gain[0] == pytest.approx(2.0, rel=0.01)
+    assert fit.sse[0] < 1e-3 * fit.sse[1]
+
+
+def slow_loop(valve, seed: int, *, n: int = 751):
+    """Slow PI on a FOPDT flow-like plant, set-point steps, measurement and load noise:
+    the last ``n`` samples (pv, op, sp)."""
+    plant = FOPDT(1.5, 10.0, 3.0)
+    steps = (SetpointStep(0.0, 50.0), SetpointStep(900.0, 55.0), SetpointStep(1200.0, 51.0))
+    sc = LoopScenario(plant=plant, controller=PIController(0.1, 0.01), setpoint_steps=steps, valve=valve,
+                      measurement_noise_std=0.1, load_noise_std=0.05, duration_s=1502.0)
+    sim = simulate_loop(sc, seed=seed)
+    return sim.pv[-n:], sim.op[-n:], sim.sp[-n:]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_sticking_valve_found_and_linear_valve_not(seed):
+    pv, op, sp = slow_loop(KarnoppLoopSpec(fc=1.5, fs=3.0), seed)
+    t = stiction_test(pv, op)
+    assert t is not None and t.sticking, t
+    found = stick_slip_episodes(pv, op)
+    assert found.episodes >= 1 and "does not follow the OP" in found.reason
+    d = diagnose_window(pv, fs=1.0, op=op, sp=sp)
+    assert d.verdict == "not_oscillating" and d.stick_slip.episodes >= 1, d.reason
+    pv, op, sp = slow_loop(None, seed)
+    t = stiction_test(pv, op)
+    assert t is not None and not t.sticking, t
+    assert diagnose_window(pv, fs=1.0, op=op, sp=sp).stick_slip.episodes == 0
+
+
+def test_no_stick_slip_when_an_integrating_pv_turns_round():
+    """Level-like PV (integral of OP - balance): while the OP ramps through the balance the
+    PV is momentarily steady, then moves on; a linear (integrating) response, no stiction."""
+    rng = np.random.default_rng(5)
+    n = 750
+    op = np.linspace(-3.0, 3.0, n) + 0.01 * rng.standard_normal(n)
+    pv = np.cumsum(op) * 0.02 + 0.05 * rng.standard_normal(n)
+    found = stick_slip_episodes(pv, op)
+    assert found is None or found.episodes == 0, found
+
+
+def test_long_windows_are_averaged_down_and_flat_signals_give_nothing():
+    pv, op, _ = slow_loop(KarnoppLoopSpec(fc=1.5, fs=3.0), 1)
+    found = stick_slip_episodes(np.repeat(pv, 4), np.repeat(op, 4))  # 3004 samples at 4x the rate
+    assert found.episodes >= 1
+    assert stick_slip_episodes(np.ones(500), op[:500]) is None
+
+
+@pytest.mark.xfail(strict=True, reason="known limitation (ACCURACY.md, issue 3): in closed loop the OP is "
+                   "correlated with the disturbance it cancels, and a deadband model of OP -> PV fits that better "
+                   "than the linear one")
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_compensated_disturbance_is_no_stick_slip(seed):
+    """Healthy valve, well-tuned PI cancelling a wandering load (three sinusoids at the PV):
+    no stick-slip should be reported."""
+    plant = FOPDT(1.5, 10.0, 3.0)
+    loads = tuple(Sinusoid(1.0, 2 * np.pi / p, ph) for p, ph in ((80.0, 0.3), (200.0, 2.0), (500.0, 4.0)))
+    steps = (SetpointStep(0.0, 50.0), SetpointStep(1000.0, 55.0))
+    sc = LoopScenario(plant=plant, controller=PIController(1.11, 0.111), setpoint_steps=steps, disturbances=loads,
+                      measurement_noise_std=0.1, load_noise_std=0.05, duration_s=1502.0)
+    sim = simulate_loop(sc, seed=seed)
+    found = stick_slip_episodes(sim.pv[-751:], sim.op[-751:])
+    assert found is None or found.episodes == 0, found
+
+
+def test_monotonic_share_of_the_op_while_the_stem_is_held():
+    from pipeline.stickslip import _monotonic_share
+
+    n = 800
+    stem = np.zeros(n)  # held throughout
+    assert _monotonic_share(np.linspace(0.0, 5.0, n), stem) == pytest.approx(1.0)
+    # back and forth: 4 periods of a sine, net travel ~0, path 16 amplitudes
+    assert _monotonic_share(np.sin(2 * np.pi * 4 * np.arange(n) / n), stem) < 0.05
+    assert _monotonic_share(np.linspace(0.0, 5.0, n), np.arange(n, dtype=float)) == 0.0  # never held
