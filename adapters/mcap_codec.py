@@ -148,6 +148,8 @@ _LOOP_CONFIG = {
     "description": "How the loop's windows are analysed (the full DiagnosisConfig).",
     "properties": {"timestamp": _TIME, "loop": {"type": "string"}, "signal": {"enum": ["pv", "op", "error"]},
                    "sample_time_s": {"type": "number"}, "length": {"type": "integer"},
+                   "hop": {"type": "integer", "minimum": 1,
+                           "description": "samples between window starts (absent in recordings before it was kept)"},
                    "diagnosis": {"type": "object"}},
     "required": ["timestamp", "loop", "signal", "diagnosis"],
 }
@@ -312,9 +314,12 @@ def encode_alert(alert: Any, end_ns: int, instance: str) -> dict:
 
 def encode_loop_config(loop_id: str, window: Any, end_ns: int) -> dict:
     """The ``loopwatch.LoopConfig`` message from a window's analysis config and grid."""
-    return {"timestamp": _stamp(end_ns), "loop": loop_id, "signal": window.analysis.signal,
-            "sample_time_s": float(window.sample_time_s), "length": int(window.t.size),
-            "diagnosis": to_json(window.analysis.diagnosis)}
+    msg = {"timestamp": _stamp(end_ns), "loop": loop_id, "signal": window.analysis.signal,
+           "sample_time_s": float(window.sample_time_s), "length": int(window.t.size),
+           "diagnosis": to_json(window.analysis.diagnosis)}
+    if getattr(window, "hop", None) is not None:
+        msg["hop"] = int(window.hop)
+    return msg
 
 
 def encode_run_config(run_config: dict, now_ns: int) -> dict:

@@ -163,6 +163,7 @@ def diagnose_window(
     op: np.ndarray | None = None,
     mode: np.ndarray | None = None,
     sp: np.ndarray | None = None,
+    stick_slip: bool = True,
 ) -> WindowDiagnosis:
     """Diagnose the cause of oscillation in one window of a loop signal.
 
@@ -180,6 +181,9 @@ def diagnose_window(
         changes inside the window, the control error ``sp - x`` is analysed instead of the PV
         (a set-point step in the PV is a transient, not an oscillation, and its corners would
         read as intra-wave frequency modulation); the reason says so.
+    stick_slip : search a window that does not oscillate for stick-slip episodes (needs ``op``
+        and ``sp``; the costliest step of a non-oscillating window).  A caller sliding
+        overlapping windows may search only some of them (the monitor: one per window length).
 
     Returns
     -------
@@ -209,7 +213,7 @@ def diagnose_window(
     gate = oscillation_gate(x, fs=fs, config=config.gate)
     if config.method == "robust":
         diag = _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op, notes=notes)
-        if diag.verdict == "not_oscillating" and op is not None and sp is not None:  # x is the PV
+        if stick_slip and diag.verdict == "not_oscillating" and op is not None and sp is not None:  # x is the PV
             diag = _with_stick_slip(diag, pv, op, config)
         return diag
     if not gate.oscillating:

@@ -139,6 +139,15 @@ class WindowSamples:
     signals: dict[str, np.ndarray]
     analysis: AnalysisConfig
     t_offset: dict[str, np.ndarray] = field(default_factory=dict)
+    hop: int | None = None
+
+    @property
+    def searches_stick_slip(self) -> bool:
+        """Whether this window is searched for stick-slip episodes when it does not oscillate:
+        one window per window length of data (the one whose start is within a hop past a
+        multiple of the length), not every overlapping window, since the search costs ~5x a
+        non-oscillating window's diagnosis; every window when the hop is unknown."""
+        return self.hop is None or self.index0 % self.t.size < self.hop
 
     def sample_times(self, name: str) -> np.ndarray:
         """The data's own time stamps (Unix s) of signal ``name``: grid time plus its offset."""
@@ -188,7 +197,7 @@ def analyze_window(window: WindowSamples) -> WindowResult:
     signals = window.signals
     extra = witnesses(window.analysis.signal, op=signals.get("op"), sp=signals.get("sp"))
     diag = diagnose_window(x, fs=1.0 / window.sample_time_s, config=window.analysis.diagnosis,
-                           mode=signals.get("mode"), **extra)
+                           mode=signals.get("mode"), stick_slip=window.searches_stick_slip, **extra)
     if diag.gate is not None:
         amplitude, period = diag.gate.amplitude, diag.gate.period_s
     else:   # not analysed (manual, too many gaps): the same figure over the samples there are
@@ -473,7 +482,7 @@ class LoopBuffer:
         offsets = {name: np.where(np.isfinite(signals[name]), arr[s], 0.0)
                    for name, arr in self.offsets.items() if name in signals}
         w = WindowSamples(self.loop_id, self.seq, self.next_start, self.origin + idx * self.ts, self.ts,
-                          signals, self.config.analysis, offsets)
+                          signals, self.config.analysis, offsets, hop=self.hop)
         self.seq += 1
         self.next_start += self.hop
         return w

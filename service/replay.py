@@ -73,7 +73,8 @@ def to_window(group: RecordedGroup) -> WindowSamples:
         off = ns - grid_ns
         if np.any(off != 0):
             offsets[name] = off / 1e9
-    return WindowSamples(rec.loop_id, rec.seq, rec.index0, rec.t, rec.sample_time_s, rec.signals, analysis, offsets)
+    return WindowSamples(rec.loop_id, rec.seq, rec.index0, rec.t, rec.sample_time_s, rec.signals, analysis, offsets,
+                         hop=group.config.get("hop"))
 
 
 def _recorded(group: RecordedGroup) -> RecordedWindow:

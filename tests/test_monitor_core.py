@@ -401,3 +401,26 @@ def test_set_point_sent_on_change_makes_the_window_analyse_the_control_error():
     assert "analysing the control error" in reason, reason
     w2 = WindowSamples("L", 0, 0, t, 1.0, {"pv": pv, "op": op}, AnalysisConfig())
     assert "control error" not in analyze_window(w2).diagnosis.reason
+
+
+def test_stick_slip_search_runs_once_per_window_length_of_overlapping_windows():
+    """Window 1024, hop 256: of the windows starting at 0, 256, ..., 3840 exactly those starting at
+    a multiple of 1024 are searched (one per 1024 samples of data), and a stick-slip finding is
+    reported only in those; without a hop every window is searched."""
+    from service.monitor import AnalysisConfig, WindowSamples, analyze_window
+
+    t = np.arange(1024, dtype=float)
+    starts = range(0, 4096, 256)
+    searched = [WindowSamples("L", k, s, t, 1.0, {}, AnalysisConfig(), hop=256).searches_stick_slip
+                for k, s in enumerate(starts)]
+    assert [s for s, yes in zip(starts, searched) if yes] == [0, 1024, 2048, 3072]
+    assert WindowSamples("L", 0, 256, t, 1.0, {}, AnalysisConfig()).searches_stick_slip
+    # a healthy, non-oscillating window with PV, OP and SP: the search (and its reason) only when due
+    rng = np.random.default_rng(3)
+    pv = 50 + 0.2 * rng.standard_normal(1024)
+    op = 40 + 0.2 * rng.standard_normal(1024)
+    sig = {"pv": pv, "op": op, "sp": np.full(1024, 50.0)}
+    due = analyze_window(WindowSamples("L", 4, 1024, t, 1.0, sig, AnalysisConfig(), hop=256)).diagnosis
+    skip = analyze_window(WindowSamples("L", 5, 1280, t, 1.0, sig, AnalysisConfig(), hop=256)).diagnosis
+    assert due.verdict == skip.verdict == "not_oscillating"
+    assert due.stick_slip is not None and skip.stick_slip is None
