@@ -286,12 +286,13 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
 # --------------------------------------------------------------------------- fitting
 
 _BASE = ("k", "fc", "fv", "bias")
+_SHORT_NFEV = 6  # evaluation budget of a short multi-start fit
 
 
 def _to_valve(vals: dict[str, float], cfg: ReconcileConfig, dv: float) -> EffectValve:
     dfs = vals.get("dfs", 0.0)
     return EffectValve(
-        k=vals["k"], fc=vals["fc"], fv=vals["fv"], bias=vals["bias"], m=cfg.m, sa=cfg.sa, dv=dv,
+        k=vals["k"], fc=vals["fc"], fv=vals["fv"], bias=vals["bias"], m=cfg.m, sa=cfg.sa, dv=vals.get("dv", dv),
         fs=vals["fc"] + dfs if dfs > 0 else math.nan, vs=vals.get("vs", 0.0), tau=vals.get("tau", 0.0),
         theta=vals.get("theta", 0.0), deadband=vals.get("deadband", 0.0),
     )
@@ -340,13 +341,14 @@ class _Fit:
 
 
 def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
-         use: str = "train", max_nfev: int | None = None) -> _Fit:
+         use: str = "train", max_nfev: int | None = None, stride_s: float = 0.004) -> _Fit:
     # every 4 ms of the record enters the objective: the fit is as good (the model error is smooth,
     # the noise white) and the least-squares linear algebra 4 times cheaper at 1 ms sampling
+    # (the short fits of the multi-start use every 16 ms)
     masks = []
     for r in recs:
         m = r.train.copy() if use == "train" else np.ones(r.x.size, bool)
-        m[np.arange(r.x.size) % max(1, int(round(0.004 / r.dt))) != 0] = False
+        m[np.arange(r.x.size) % max(1, int(round(stride_s / r.dt))) != 0] = False
         masks.append(m)
     scale_res = max(min(r.sigma_x for r in recs), 1e-9)
     bnd = [_bounds(n, vals0, recs) for n in free]
@@ -432,9 +434,16 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     return {"k": float(k), "fc": float(fc), "fv": float(fv), "bias": float(kb / k)}
 
 
-def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig) -> list[dict[str, float]]:
+def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[dict[str, float]]:
     """Starting points for a candidate: a few sizes of the effect, the baseline parameters
-    adjusted for what the baseline absorbed (a deadband looks like extra Coulomb friction)."""
+    adjusted for what the baseline absorbed (a deadband looks like extra Coulomb friction).
+
+    ``slip_jump`` / ``stribeck`` are also tried with the limit velocity DV of eq. (2) at a tenth
+    of the baseline's (``dv`` then enters the fit as a parameter held at its start value, counted
+    in the penalty): with ``F_s > F_c`` a slow slide whose speed falls below DV sticks and waits for
+    ``F_s − F_c`` more force, so a DV above the record's slow sliding speeds turns a slow slide
+    into a stick-slip staircase that the data may not show (a slide is metastable near DV);
+    with ``F_s = F_c`` (the baseline) DV hardly matters."""
     fc, k = vals["fc"], vals["k"]
     vt = float(np.median([r.speed_typ for r in recs]))
     if effect in ("slip_jump", "stribeck"):
@@ -445,16 +454,16 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
         except IdentificationError:
             fresh = None
         out = []
-        for fam, v0 in ((0.0, vals), (1.0, fresh)):
+        for v0, extra in ((vals, {}), (fresh, fresh)):
             if v0 is None:
                 continue
             fc0 = v0["fc"]
-            extra = {} if fam == 0.0 else {**v0, "_family": 1.0}
             if effect == "slip_jump":
-                out += [{**extra, "dfs": f * fc0} for f in (0.1, 0.3, 0.6, 1.0)]
+                out += [{**extra, "dfs": f * fc0} for f in (0.15, 0.4, 1.0)]
             else:
-                out += [{**extra, "dfs": f * fc0, "vs": g * vt} for f in (0.2, 0.5, 1.0) for g in (0.3, 1.0, 3.0)]
-        return out
+                out += [{**extra, "dfs": f * fc0, "vs": g * vt} for f in (0.3, 0.8) for g in (0.5, 2.0)]
+        dv0 = vals.get("dv", dv)
+        return [{**g, "dv": d} for g in out for d in (dv0, 0.1 * dv0)]
     # a baseline absorbs a lag or a dead time in its slide time constant F_v/k: give it back
     fv = vals["fv"]
     # or start again from the force balances with the pressure the candidate puts on the actuator
@@ -462,9 +471,9 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
         key = "tau" if effect == "actuator_lag" else "theta"
         out = []
         for t in (0.01, 0.03, 0.1, 0.3, 1.0):
-            out += [{key: t, "fv": f} for f in {fv, max(fv - k * t, 0.1 * fv)}]
+            out.append({key: t, "fv": max(fv - k * t, 0.1 * fv)})
             try:
-                out.append({key: t, **_initial_baseline(recs, cfg, **{key: t}), "_family": 1.0})
+                out.append({key: t, **_initial_baseline(recs, cfg, **{key: t})})
             except IdentificationError:
                 pass
         return out
@@ -642,7 +651,7 @@ def cross_correlation(e: np.ndarray, u: np.ndarray, dt: float, max_lag_s: float 
 
 def _public(vals: dict[str, float], dv: float) -> dict[str, float]:
     out = {"k": vals["k"], "Fc": vals["fc"], "Fs": vals["fc"] + vals.get("dfs", 0.0), "Fv": vals["fv"],
-           "bias_m": vals["bias"], "dv": dv}
+           "bias_m": vals["bias"], "dv": vals.get("dv", dv)}
     for n, key in (("vs", "vs"), ("tau", "tau_s"), ("theta", "theta_s"), ("deadband", "deadband_m")):
         if n in vals:
             out[key] = vals[n]
@@ -714,27 +723,31 @@ def reconcile(
         cands = []
         for eff in todo:
             names = _effect_names(eff)
-            best: dict[float, tuple[float, dict[str, float]]] = {}  # best start of each family
-            for g in _grid(eff, cur, recs, cfg):
+            # multi-start: every start gets a short coarse fit, the two best are refined (the
+            # sum of squares at a start does not tell which basin the fit ends in: a hysteretic
+            # output error is steep in k and F_s, and the start nearest in error is often the
+            # baseline's compromise)
+            shorts = []
+            for g in _grid(eff, cur, recs, cfg, dv):
                 v = dict(cur)
                 v.update(g)
-                fam = v.pop("_family", 0.0)
                 if v["fc"] < 0:
                     continue
-                r = _residuals(v, recs, cfg, dv)
-                sse = sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(r, recs))
-                if fam not in best or sse < best[fam][0]:
-                    best[fam] = (sse, v)
-            fit = min((_fit(v, free + names, recs, cfg, dv) for _, v in best.values()), key=lambda f: f.sse_train)
-            cur_sse = sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(_residuals(cur, recs, cfg, dv), recs))
-            if fit.sse_train > cur_sse:  # the fit got lost: the extension contains the current model
+                shorts.append(_fit(v, free + names, recs, cfg, dv, max_nfev=_SHORT_NFEV, stride_s=0.016))
+            shorts.sort(key=lambda f: f.sse_train)
+            fit = min((_fit(f.vals, free + names, recs, cfg, dv) for f in shorts[:2]), key=lambda f: f.sse_train)
+            def train_sse(v: dict[str, float]) -> float:
+                return sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(_residuals(v, recs, cfg, dv), recs))
+
+            cur_sse = train_sse(cur)
+            if train_sse(fit.vals) > cur_sse:  # the fit got lost: the extension contains the current model
                 v = dict(cur)
                 v.update({n: 0.0 for n in names})
                 if eff == "stribeck":
                     v["vs"] = float(np.median([r.speed_typ for r in recs]))
                 fit = _Fit(v, cur_sse)
             sc = _score(_residuals(fit.vals, recs, cfg, dv), recs)
-            p_add = len(names)
+            p_add = len(names) + (eff in ("slip_jump", "stribeck"))  # + DV (see _grid)
             dbic = n_eff * math.log(sc_cur.mse_h / sc.mse_h) - p_add * math.log(n_eff)
             d = sc_cur.block_sse - sc.block_sse
             t = _signed_rank_p(d)

@@ -138,7 +138,8 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
                     v = (h * (f - s * fs)) / (m + h * fv)
                     x += h * v
             else:
-                s = 1.0 if v > 0 else -1.0
+                # a stem stopped at a reversal with |f| > F_s moves off in the direction of the force
+                s = (1.0 if v > 0 else -1.0) if v != 0.0 else (1.0 if f > 0 else -1.0)
                 fr = fc + (fs - fc) * math.exp(-((v / vs) ** 2)) if vs > 0 else fc
                 vn = (m * v + h * (f - s * fr)) / (m + h * fv)
                 if vn * s <= 0:  # the velocity would change sign: stop, stick if friction can hold
