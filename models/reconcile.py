@@ -28,6 +28,15 @@ missing effect explains it, and how much does adding it shrink the gap.
      (an improvement far below the noise is not worth a model term);
    * most of its gain (> 1/2) falls in the regimes the effect predicts (:data:`PREDICTS`).
 
+   Each candidate is fitted from several starts (:func:`_grid`: sizes of the effect, the current
+   parameters and fresh force-balance starts; ``slip_jump`` / ``stribeck`` also with DV at a
+   tenth); every start gets a short coarse fit and the two best are refined — the output error
+   of a hysteretic model is steep in ``k`` and ``F_s``, and the start nearest in error is often
+   the baseline's compromise, not the basin of the truth.
+   Before the best passing effect is credited with its gain, the current model is refitted from
+   the winner's parameters with the effect taken out; if that fits better, the gain came from a
+   better basin of the model we already have: it replaces the current model (the reported
+   baseline too, while no effect is accepted) and the candidates are tested again.
    The best passing effect (largest ΔBIC) is added and the search repeats, so that two hidden
    effects are both found; it stops when no effect passes or when the model is within the
    noise (held-out MSE − noise power < ``min_gain``·noise power).
