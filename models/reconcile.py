@@ -733,6 +733,8 @@ def reconcile(
     accepted: list[str] = []
     message = ""
     refits = 0
+    carry: dict[str, dict[str, float]] = {}  # candidates' fits kept as starts across a refit
+    n_train = sum(int(r.train.sum()) for r in recs)
 
     def train_sse(v: dict[str, float]) -> float:
         return sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(_residuals(v, recs, cfg, dv), recs))
@@ -760,7 +762,7 @@ def reconcile(
             # output error is steep in k and F_s, and the start nearest in error is often the
             # baseline's compromise)
             shorts = []
-            for g in _grid(eff, cur, recs, cfg, dv):
+            for g in _grid(eff, cur, recs, cfg, dv) + ([carry[eff]] if eff in carry else []):
                 v = dict(cur)
                 v.update(g)
                 if v["fc"] < 0:
@@ -816,14 +818,16 @@ def reconcile(
             # before the effect is credited with the gain: the current model refitted from the
             # winner's parameters with the effect taken out.  If that fits the training blocks
             # better than the current model, the candidate's multi-start merely found a better
-            # basin of the model we already have: take it and test the candidates again
+            # basin of the model we already have (by at least the relevance bar min_gain): take it
+            # and test the candidates again, each also started from its fit of this round
             again = {n: v for n, v in best_v.items() if n not in _effect_names(best_c.effect) and n != "dv"}
             if "dv" in cur:
                 again["dv"] = cur["dv"]
             again = _fit(again, free, recs, cfg, dv).vals
-            if train_sse(again) < train_sse(cur):
+            if train_sse(again) < train_sse(cur) - cfg.min_gain * noise_pow * n_train:
                 cur = again
                 refits += 1
+                carry = {c.effect: v for c, v in cands}
                 if not accepted:  # the baseline itself was in a worse basin: report the better one
                     share, counts, (rho, lag), baseline = disagreement(cur)
                 continue
@@ -839,6 +843,7 @@ def reconcile(
             o = others[0]
             evidence += f"; next best {o.effect} (ΔBIC {o.delta_bic:.1f}{', passes' if o.passed else ''})"
         accepted.append(best_c.effect)
+        carry = {}
         free = free + _effect_names(best_c.effect)
         cur = best_v
         steps.append(full_step(best_c.effect, cur, free, evidence))
