@@ -172,9 +172,11 @@ def actuator_pressure(p: np.ndarray, dt: float, tau: float = 0.0, theta: float =
     over each step, as :func:`models.karnopp.karnopp_step` does for the V/P lag), starting at
     rest at ``p[0]``."""
     p = np.asarray(p, float)
-    if theta > 0:
-        idx = np.arange(p.size) - theta / dt
-        p = np.interp(idx, np.arange(p.size), p)  # np.interp holds p[0] for idx < 0
+    if theta > 0:  # p(t − θ): θ/dt = n + f samples, linear between samples, p[0] before the record
+        n = min(int(theta / dt), p.size)
+        f = theta / dt - n
+        padded = np.concatenate((np.full(n + 1, p[0]), p))
+        p = (1.0 - f) * padded[1 : p.size + 1] + f * padded[: p.size]
     if tau > 0:
         a = math.exp(-dt / tau)
         p = lfilter([1.0 - a], [1.0, -a], p, zi=[a * p[0]])[0]

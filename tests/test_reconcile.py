@@ -13,7 +13,7 @@ from models.identification import ValveData
 from models.karnopp import PRESETS
 from models.reconcile import REGIMES, reconcile, smooth_pressure
 from models.valve_effects import hidden_record
-from models.valve_tests import isa_steps
+from models.valve_tests import isa_steps, sine
 from service.cli import main
 
 SHORT = isa_steps(steps_pct=(1.0, 5.0, 20.0, 50.0), hold=2.0)  # 18 s of ISA-75.25 steps
@@ -72,3 +72,21 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "unknown effect 'bogus'" in capsys.readouterr().err
     assert main(["reconcile", str(tmp_path / "missing.csv")]) == 2
     assert "cannot open" in capsys.readouterr().err
+
+
+def test_dead_time_shift_matches_linear_interpolation():
+    from models.valve_effects import actuator_pressure
+
+    p = np.cumsum(np.random.default_rng(3).standard_normal(3000))
+    for theta in (0.0004, 0.001, 0.0123, 0.5, 3.5):  # fractions of a sample, whole samples, > record
+        ref = np.interp(np.arange(p.size) - theta / 1e-3, np.arange(p.size), p)  # p[0] before the record
+        assert np.allclose(actuator_pressure(p, 1e-3, theta=theta), ref, rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_hidden_slip_jump_is_named_and_the_gap_shrinks():
+    rec = hidden_record(PRESETS["high"].replace(tau_p=0.0), sine(periods=1.2), {"slip_jump": (1.5,)}, seed=3)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "sine"))
+    assert r.effects[:1] == ["slip_jump"]
+    assert r.steps[0].params["Fs"] / r.steps[0].params["Fc"] == pytest.approx(1.5, rel=0.15)
+    assert r.final.rmse <= 0.5 * r.baseline.rmse

@@ -16,7 +16,8 @@ Prints the confusion matrix (hidden effect vs. first effect named), detection ra
 results, the smallest detectable size per effect and final/baseline RMSE ratios.
 
 Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.py``
-(``LOOPWATCH_BENCH_WORKERS`` processes, default 2; ``LOOPWATCH_BENCH_QUICK=1`` for a smoke run).
+(``LOOPWATCH_BENCH_WORKERS`` processes, default 2; ``LOOPWATCH_BENCH_QUICK=1`` for a smoke run;
+``LOOPWATCH_RECONCILE_INDEP_SEEDS``: the independent draws, default ``20261122,7``).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ from .conftest import machine_note
 DT = 1e-3
 QUICK = os.environ.get("LOOPWATCH_BENCH_QUICK") == "1"
 WORKERS = int(os.environ.get("LOOPWATCH_BENCH_WORKERS", "2"))
+# independent-simulator draws: 20261122 was seen in development, 7 only in the report runs
+INDEP_SEEDS = [int(s) for s in os.environ.get("LOOPWATCH_RECONCILE_INDEP_SEEDS", "20261122,7").split(",")]
 
 # ----------------------------------------------------------------------------- excitations
 
@@ -138,7 +141,8 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
                     v = (h * (f - s * fs)) / (m + h * fv)
                     x += h * v
             else:
-                s = 1.0 if v > 0 else -1.0
+                # a stem stopped at a reversal with |f| > F_s moves off in the direction of the force
+                s = (1.0 if v > 0 else -1.0) if v != 0.0 else (1.0 if f > 0 else -1.0)
                 fr = fc + (fs - fc) * math.exp(-((v / vs) ** 2)) if vs > 0 else fc
                 vn = (m * v + h * (f - s * fr)) / (m + h * fv)
                 if vn * s <= 0:  # the velocity would change sign: stop, stick if friction can hold
@@ -206,8 +210,8 @@ def own_cases() -> list[dict]:
     return cases
 
 
-def indep_cases() -> list[dict]:
-    rng = np.random.default_rng(20261122)
+def indep_cases(seed: int = 20261122) -> list[dict]:
+    rng = np.random.default_rng(seed)
     excs = ["random-steps", "ramps", "sine-sweep", "prbs"]
     cases = []
     kinds = [("single", e) for e in EFFECTS for _ in range(3)] + [("clean", None)] * 8
@@ -228,7 +232,7 @@ def indep_cases() -> list[dict]:
 
         effs = [] if kind == "clean" else ([what] if kind == "single" else list(what))
         cases.append(dict(kind=kind, indep=True, valve=valve, exc=excs[i % 4], hidden={e: size(e) for e in effs},
-                          noise=(rng.uniform(5e-6, 2e-5), rng.uniform(50.0, 400.0)), seed=1000 + i))
+                          noise=(rng.uniform(5e-6, 2e-5), rng.uniform(50.0, 400.0)), seed=1000 + i + (0 if seed == 20261122 else 100 * (seed % 97 + 1))))
     return cases
 
 
@@ -329,7 +333,8 @@ def _run_all(pool, cases, label):
 @pytest.mark.bench
 @pytest.mark.timeout(0)
 def test_reconcile_accuracy():
-    own, ind = own_cases(), indep_cases()
+    own = own_cases()
+    ind = [c for sd in INDEP_SEEDS for c in indep_cases(sd)]
     if QUICK:
         own, ind = own[::8], ind[::6]
     print(f"\nmachine: {machine_note()}; workers {WORKERS}")
