@@ -32,8 +32,9 @@ import math
 from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
-from numba import njit
 from scipy.signal import lfilter
+
+from pipeline.jit import compile_cached
 
 from .errors import ModelConfigError
 from .karnopp import M_KG, SA_M2, KarnoppParams
@@ -183,7 +184,7 @@ def actuator_pressure(p: np.ndarray, dt: float, tau: float = 0.0, theta: float =
     return p
 
 
-@njit(cache=True)
+@compile_cached
 def _backlash(s, half, y0):  # pragma: no cover - compiled
     y = np.empty_like(s)
     yi = y0
@@ -207,7 +208,7 @@ def transmitter(x_stem: np.ndarray, deadband: float, y0: float | None = None) ->
     return _backlash(x_stem, 0.5 * deadband, float(x_stem[0] if y0 is None else y0))
 
 
-@njit(cache=True)
+@compile_cached
 def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
     """Speed u > 0 after a sliding step: root of A·u + h·F(u) − gs = 0 with the sliding friction
     F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck), bracketed in
@@ -237,7 +238,7 @@ def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
     return u
 
 
-@njit(cache=True)
+@compile_cached
 def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, reset):  # pragma: no cover - compiled
     """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
     Stribeck sliding friction solved implicitly, and the two stick/slip events placed inside the

@@ -23,11 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from PyEMD import EMD
 from scipy.linalg.lapack import dgtsv
 
 from .errors import PipelineConfigError, SignalError
+from .jit import compile_cached
 
 __all__ = ["EMDConfig", "emd", "not_a_knot_spline"]
 
@@ -202,16 +202,7 @@ def _mirror_indices(s: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: in
 # gives the same numbers; numba compiles without fastmath, so nothing is reassociated or fused.
 
 
-def _compile(function):
-    """``numba.njit`` with an on-disk cache when a cache directory is writable, without otherwise
-    (numba refuses ``cache=True`` when it finds no writable cache location)."""
-    try:
-        return njit(cache=True)(function)
-    except RuntimeError:  # pragma: no cover - read-only installation and home
-        return njit(cache=False)(function)
-
-
-@_compile
+@compile_cached
 def _gtsv(dl, d, du, b):  # pragma: no cover - compiled
     """LAPACK ``dgtsv`` (one right-hand side) in place: Gaussian elimination with partial pivoting
     on a tridiagonal system, the reference algorithm step by step.  Returns ``False`` on a zero
@@ -247,7 +238,7 @@ def _gtsv(dl, d, du, b):  # pragma: no cover - compiled
     return True
 
 
-@_compile
+@compile_cached
 def _spline_fit(x, y):  # pragma: no cover - compiled
     """:func:`_not_a_knot_coefficients` for one spline (``x.size >= 4``): slopes ``s`` at the
     knots and ``c2``, ``c3`` per segment, after a flag that is ``False`` on a singular system."""
@@ -279,7 +270,7 @@ def _spline_fit(x, y):  # pragma: no cover - compiled
     return True, b, c2, c3
 
 
-@_compile
+@compile_cached
 def _spline_into(out, x, y, s, c2, c3):  # pragma: no cover - compiled
     """A spline at ``t = 0, 1, ..., out.size - 1`` into ``out``, segment by segment as
     :func:`_evaluate` assigns the points (``x[j] <= t < x[j + 1]``; the last segment up to the end)
@@ -296,7 +287,7 @@ def _spline_into(out, x, y, s, c2, c3):  # pragma: no cover - compiled
         start = max(start, stop)
 
 
-@_compile
+@compile_cached
 def _put_reversed(row, src, lo, hi, first, last):  # pragma: no cover - compiled
     """``row[:count] = [first] + src[lo:hi][::-1] + [last]`` (``-1``: no ``first`` / ``last``);
     returns ``count``."""
@@ -313,7 +304,7 @@ def _put_reversed(row, src, lo, hi, first, last):  # pragma: no cover - compiled
     return count
 
 
-@_compile
+@compile_cached
 def _mirror(s, imax, imin, nbsym, pts, count):  # pragma: no cover - compiled
     """:func:`_mirror_indices` on arrays (``nbsym >= 1``): the mirrored extrema go to the rows
     of ``pts`` (0 left maxima, 1 left minima, 2 right maxima, 3 right minima; ``count`` holds
@@ -377,7 +368,7 @@ def _mirror(s, imax, imin, nbsym, pts, count):  # pragma: no cover - compiled
     return True, lsym, rsym
 
 
-@_compile
+@compile_cached
 def _knots(s, left, a, inner, right, c, lsym, rsym):  # pragma: no cover - compiled
     """Knot positions and values of one envelope: the extrema ``inner`` with the mirrored ones
     (``left[:a]`` about ``lsym``, ``right[:c]`` about ``rsym``), after a flag that is ``False``
@@ -404,7 +395,7 @@ def _knots(s, left, a, inner, right, c, lsym, rsym):  # pragma: no cover - compi
     return True, x, y
 
 
-@_compile
+@compile_cached
 def _sift_step(imf, nbsym):  # pragma: no cover - compiled
     """One sift of ``imf`` in place.  Returns ``(ext_no, done)``: ``ext_no`` the number of
     extrema (``-1`` when the simple extrema do not apply: flat step, underflowing difference,

@@ -163,7 +163,7 @@ def test_compiled_sift_is_used_and_hands_special_rules_back():
 
 
 @pytest.mark.slow
-def test_kernel_compiles_without_a_writable_cache_location():
+def test_kernels_compile_without_a_writable_cache_location():
     """numba refuses ``cache=True`` when no cache location is writable (read-only installation
     and home); the kernel must then compile in memory.  ``IPythonCacheLocator`` as the only
     locator applies nowhere outside IPython: no location at all."""
@@ -173,10 +173,13 @@ def test_kernel_compiles_without_a_writable_cache_location():
     from pathlib import Path
 
     script = ("import numpy as np\nfrom pipeline.emd import _sift_step, emd\n"
+              "from models.valve_effects import _backlash\n"
               "imfs, _ = emd(np.sin(np.arange(1000) / 7.0) + np.sin(np.arange(1000) / 41.0))\n"
-              "print(type(_sift_step._cache).__name__, imfs.shape[0])\n")
+              "print(type(_sift_step._cache).__name__, imfs.shape[0])\n"
+              "print(type(_backlash._cache).__name__, *_backlash(np.array([0.0, 1.0, 0.5]), 0.25, 0.0))\n")
     env = dict(os.environ, NUMBA_CACHE_LOCATOR_CLASSES="IPythonCacheLocator")
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600,
                        env=env, cwd=Path(__file__).resolve().parents[1])
     assert p.returncode == 0, p.stderr
-    assert p.stdout.split() == ["NullCache", "3"]
+    # the valve kernels too: a backlash of half-width 0.25 driven 0 -> 1 -> 0.5 (planted by hand)
+    assert p.stdout.split() == ["NullCache", "3", "NullCache", "0.0", "0.75", "0.75"]

@@ -1,0 +1,22 @@
+"""numba compilation with an on-disk cache where one can be written (shared by the compiled kernels
+of :mod:`pipeline.emd` and :mod:`models.valve_effects`)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["compile_cached"]
+
+
+def compile_cached(function):
+    """``numba.njit`` with an on-disk cache when a cache directory is writable, without otherwise.
+
+    numba refuses ``cache=True`` (``RuntimeError`` at decoration, i.e. at import) when it finds no
+    writable cache location: ``__pycache__`` beside the module, else the user's cache directory.
+    A read-only installation with a read-only home then compiles in memory on first use instead
+    of failing to import.
+    """
+    try:
+        return njit(cache=True)(function)
+    except RuntimeError:  # pragma: no cover - read-only installation and home
+        return njit(cache=False)(function)
