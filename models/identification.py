@@ -131,7 +131,7 @@ def check_record(
         )
     if float(np.ptp(arrays["p"])) <= 0:
         raise IdentificationError(f"{name}: the pressure p is constant; the record needs a varying actuator force")
-    _check_saturation(name, arrays["p"], x, sx)
+    _check_saturation(name, arrays["p"], x, sx, dt)
     return dt
 
 
@@ -143,22 +143,51 @@ def noise_std(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float) -> None:
-    # Pinned at a stop: the stem sits at its extreme position while the pressure keeps pushing
-    # further into that direction by a large part of its whole range.  A friction stick cannot
-    # do that (the stem would break away after 2·F_s).
+def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float, dt: float) -> None:
+    # A travel stop against friction, by the force balance Sa·p − k·x (eq. 4) at constant x: while
+    # the stem is held still at one position, friction can only hold the pressure within the band
+    # (k·x ± F_s)/Sa, so the pressure range over a still run is at most 2·F_s/Sa, whatever Sa and k.
+    # The record shows that band itself: the widest pressure range over which the stem is held
+    # still at positions away from the candidate stop (a lower bound of 2·F_s/Sa).  A stem held
+    # still at its extreme position while the pressure ranges over more than twice that band,
+    # pushing into the extreme, is on a stop: friction could not hold it there.  A stem stuck by
+    # friction at its lowest position (a sticky valve with small pressure steps) stays inside it.
     tol = max(4 * sx, 1e-4 * float(np.ptp(x)))
+    vl, sv = slow_velocity(x, dt)
+    still = np.abs(vl) <= 5 * sv
+    trim = max(1, int(round(0.05 / dt)))  # half the 0.1 s velocity window: keep slide samples out
+    runs = [(a + trim, b - trim) for a, b, s in _runs(still.astype(int)) if s == 1 and b - a > 4 * trim]
     p_span = float(np.ptp(p))
-    for side, at, push in (("upper", x >= x.max() - tol, 1.0), ("lower", x <= x.min() + tol, -1.0)):
+    for side, push in (("upper", 1.0), ("lower", -1.0)):
+        x_end = float(x.max() if push > 0 else x.min())
+        at = x >= x.max() - tol if push > 0 else x <= x.min() + tol
         idx = np.flatnonzero(at)
         if idx.size < 100:
             continue
-        first = idx[0]
-        excess = push * (p[idx] - p[first])
+        # still runs at the end of travel: their median within the extreme sample's noise reach
+        med = [float(np.median(x[a:b])) for a, b in runs]
+        near = [push * (x_end - m) <= tol + 6 * sx for m in med]
+        held = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if n]
+        elsewhere = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if not n]
+        if elsewhere and held:
+            band = max(elsewhere)
+            hold = max(held)
+            if hold > 2.0 * band:
+                raise IdentificationError(
+                    f"{name}: travel saturated: the stem is held at its {side} stop "
+                    f"({np.median([m for m, n in zip(med, near) if n]):.6g} m) while the "
+                    f"pressure ranges over {hold:.4g} Pa, more than twice the widest range friction holds it "
+                    f"still elsewhere in the record ({band:.4g} Pa); the identification needs sliding data away "
+                    "from the stops"
+                )
+            continue
+        # no still run away from this end to measure friction by: the stem is pinned at the end
+        # while the pressure keeps pushing into it by a large part of its whole range
+        excess = push * (p[idx] - p[idx[0]])
         if np.percentile(excess, 95) > 0.25 * p_span and idx.size > 0.05 * x.size:
             raise IdentificationError(
                 f"{name}: travel saturated: the stem is pinned at its {side} stop "
-                f"({x.max() if push > 0 else x.min():.6g} m) for {idx.size / x.size:.0%} of the record while the "
+                f"({x_end:.6g} m) for {idx.size / x.size:.0%} of the record while the "
                 "pressure keeps rising into it; the identification needs sliding data away from the stops"
             )
 

@@ -216,3 +216,43 @@ def test_no_breakaway_in_both_directions_is_reported():
     half = sig.t.size // 6  # only the first rising ramp: no downward breakaway
     with pytest.raises(IdentificationError, match="needs both"):
         identify(_vd(rec, "sq"), ValveData(sig.t[:half], sig.p[:half], sig.x[:half]), sa=p.sa)
+
+
+def _planted_steps(levels, *, k=1.5e5, sa=0.03, fs=600.0, x_lo=-np.inf, x_hi=np.inf, seed=5):
+    # quasi-static Karnopp stick rule (eq. 4-6 without inertia/viscosity): the stem holds while
+    # |Sa·p − k·x| <= F_s and otherwise slides to the band edge; optional travel stops clip x
+    dt, hold = 1e-3, 2000
+    p = np.repeat(np.asarray(levels, float), hold)
+    x = np.empty_like(p)
+    xi = float(np.clip(sa * p[0] / k, x_lo, x_hi))
+    for i, pi in enumerate(p):
+        f = sa * pi - k * xi
+        if abs(f) > fs:
+            xi = float(np.clip((sa * pi - np.sign(f) * fs) / k, x_lo, x_hi))
+        x[i] = xi
+    rng = np.random.default_rng(seed)
+    return np.arange(p.size) * dt, p + 50.0 * rng.standard_normal(p.size), x + 1e-5 * rng.standard_normal(p.size)
+
+
+# band 2·F_s/Sa = 40 kPa; the first five steps stay inside it around the start (stuck at the lowest x)
+_STUCK = [110e3, 95e3, 125e3, 100e3, 120e3, 170e3, 150e3, 185e3, 140e3, 200e3, 160e3, 215e3, 180e3, 120e3, 175e3]
+
+
+def test_friction_stuck_stem_at_its_lowest_position_is_not_a_stop():
+    t, p, x = _planted_steps(_STUCK)
+    k, sa = 1.5e5, 0.03
+    # planted truth: the stem sits at its lowest position for the first five steps, pressure within the band
+    assert np.ptp(x[: 5 * 2000]) < 1e-4 and x[: 5 * 2000].mean() <= x.min() + 1e-4
+    assert np.all(np.abs(sa * p[: 5 * 2000] - k * x[: 5 * 2000]) <= 600.0 + 10.0)
+    check_record(ValveData(t, p, x, "stuck"))  # accepted
+
+
+def test_stem_clipped_at_a_travel_stop_while_the_pressure_pushes_on_is_refused():
+    # same valve and friction, a lower stop at 22 mm: the later low steps push 30-60 kPa below it
+    levels = [170e3, 150e3, 185e3, 140e3, 200e3, 160e3, 215e3, 180e3, 60e3, 30e3, 120e3, 175e3, 45e3, 140e3]
+    t, p, x = _planted_steps(levels, x_lo=0.022)
+    k, sa = 1.5e5, 0.03
+    at_stop = x <= 0.022 + 5e-5
+    assert at_stop.mean() > 0.1 and np.min(sa * p[at_stop] - k * 0.022) < -2 * 600.0  # planted: far beyond F_s
+    with pytest.raises(IdentificationError, match=r"travel saturated: .*lower stop \(0\.022"):
+        check_record(ValveData(t, p, x, "clipped"))
