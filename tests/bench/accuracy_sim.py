@@ -323,15 +323,20 @@ def gate_benchmark(n_per_case: int, seed: int, config=None):
     return {c: float(np.mean(v)) for c, v in right.items()}, (np.mean(pos) + np.mean(neg)) / 2
 
 
+def _planted_report(title: str, benchmark, *, env: str, default: int, figure: str) -> None:
+    """Run a planted-case benchmark per seed, print the per-case figure and the balanced accuracy."""
+    n = int(os.environ.get(env, str(default)))
+    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
+        per_case, ba = benchmark(n, seed)
+        print(f"\n[{title}] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
+        for c, v in per_case.items():
+            print(f"  {c}: {figure} {v:.2f}")
+        assert ba > 0.5
+
+
 @pytest.mark.bench
 def test_gate_hard_cases():
-    n = int(os.environ.get("LOOPWATCH_GATE_CASES", "100"))
-    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
-        per_case, ba = gate_benchmark(n, seed)
-        print(f"\n[gate hard cases] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
-        for c, v in per_case.items():
-            print(f"  {c}: {v:.2f} right")
-        assert ba > 0.5
+    _planted_report("gate hard cases", gate_benchmark, env="LOOPWATCH_GATE_CASES", default=100, figure="right")
 
 
 # ------------------------------------------------------------------ stick-slip episodes (no limit cycle)
@@ -419,10 +424,5 @@ def stick_benchmark(n_per_case: int, seed: int):
 
 @pytest.mark.bench
 def test_stick_slip_planted():
-    n = int(os.environ.get("LOOPWATCH_STICK_CASES", "60"))
-    for seed in [int(v) for v in os.environ.get("LOOPWATCH_SIM_SEEDS", "2026,7").split(",")]:
-        per_case, ba = stick_benchmark(n, seed)
-        print(f"\n[stick-slip planted] seed {seed}, {n} per case: balanced accuracy {ba:.3f}")
-        for c, v in per_case.items():
-            print(f"  {c}: episodes found in {v:.2f}")
-        assert ba > 0.5
+    _planted_report("stick-slip planted", stick_benchmark, env="LOOPWATCH_STICK_CASES", default=60,
+                    figure="episodes found in")
