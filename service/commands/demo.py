@@ -116,12 +116,15 @@ def run(args: argparse.Namespace) -> int:
                   f"{len(loops) - mismatches} of {len(loops)} loops match the truth")
     if recording:
         first = loops[0].loop_id
+        # this run's file (the directory also keeps earlier demo runs, made by earlier code)
+        rec = recording["last_file"] if recording.get("files_finished") == 1 and recording.get("last_file") \
+            else args.record
         console.print(f"recorded {recording['windows_recorded']} windows ({recording['alerts_recorded']} alerts, "
-                      f"recording {recording['state']}) to {args.record}/; replay them with\n"
-                      f"  loopwatch replay {args.record}            # re-run the pipeline, compare verdicts\n"
-                      f"  loopwatch replay {args.record} --loop {first} --all\n"
-                      f"  loopwatch export {args.record} --loop {first} --csv out/{first.replace('/', '_')}.csv\n"
-                      f"  loopwatch replay {args.record} --publish --speed 60 --connect tcp/127.0.0.1:7447   "
+                      f"recording {recording['state']}) to {rec}; replay them with\n"
+                      f"  loopwatch replay {rec}            # re-run the pipeline, compare verdicts\n"
+                      f"  loopwatch replay {rec} --loop {first} --all\n"
+                      f"  loopwatch export {rec} --loop {first} --csv out/{first.replace('/', '_')}.csv\n"
+                      f"  loopwatch replay {rec} --publish --speed 60 --connect tcp/127.0.0.1:7447   "
                       "# to a running monitor")
     if args.rerun.startswith("save:"):  # issue 6
         path = args.rerun[len("save:"):]
