@@ -577,6 +577,7 @@ class Candidate:
     gain_over_noise: float  # removed held-out MSE / noise power
     passed: bool
     reasons: tuple[str, ...] = ()
+    replaces: str = ""  # an accepted effect this candidate's model swaps out (see _alternatives)
 
 
 @dataclass(frozen=True)
@@ -635,7 +636,7 @@ class Reconciliation:
                 [{"effect": c.effect, "passed": c.passed, "heldout_rmse_m": c.heldout_rmse, "delta_bic": c.delta_bic,
                   "p_signed_rank": c.t_stat, "p_max": c.t_crit, "gain_fraction": c.gain_fraction,
                   "gain_in_predicted_regimes": c.gain_in_predicted, "gain_over_noise": c.gain_over_noise,
-                  "params": c.params, "reasons": list(c.reasons)} for c in rnd]
+                  "params": c.params, "reasons": list(c.reasons), "replaces": c.replaces} for c in rnd]
                 for rnd in self.rounds
             ],
         }
@@ -673,6 +674,17 @@ def cross_correlation(e: np.ndarray, u: np.ndarray, dt: float, max_lag_s: float 
 
 
 # --------------------------------------------------------------------------- the workflow
+
+
+def _alternatives(effect: str, keep: list[str], new: str) -> list[str]:
+    """Effects that may stand in for an accepted ``effect`` once ``new`` is added: those that
+    predict the same regimes (the regime split cannot tell them apart, and the first search step
+    chose between them without ``new``: a lag absorbs part of a deadband's lost motion at the
+    reversals, a dead time does not), compatible with ``keep`` (the other effects of the model)
+    and ``new``."""
+    taken = set(keep) | {effect, new}
+    return [a for a in EFFECTS if a not in taken and PREDICTS[a] == PREDICTS[effect]
+            and not ({_EXCLUSIVE.get(a)} & (set(keep) | {new}))]
 
 
 def _public(vals: dict[str, float], dv: float) -> dict[str, float]:
@@ -782,15 +794,34 @@ def reconcile(
                 if eff == "stribeck":
                     v["vs"] = float(np.median([r.speed_typ for r in recs]))
                 fit = _Fit(v, cur_sse)
+            # the same candidate with an accepted effect swapped for an alternative (chosen on the
+            # training blocks only, so the held-out test below stays honest and is counted once)
+            replaces, with_, fit_free = "", "", free + names
+            for a in accepted:
+                keep = [e for e in accepted if e != a]
+                for alt in _alternatives(a, keep, eff):
+                    base = {n: x for n, x in fit.vals.items() if n not in _effect_names(a)
+                            and not (n == "dv" and a in ("slip_jump", "stribeck"))}
+                    vfree = tuple(n for n in free if n not in _effect_names(a)) + _effect_names(alt) + names
+                    vs = [_fit({**base, **g}, vfree, recs, cfg, dv, max_nfev=_SHORT_NFEV, stride_s=0.016)
+                          for g in _grid(alt, base, recs, cfg, dv) if {**base, **g}["fc"] >= 0]
+                    if not vs:
+                        continue
+                    vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv)
+                    if train_sse(vfit.vals) < train_sse(fit.vals):
+                        fit, replaces, with_, fit_free = vfit, a, alt, vfree
             res_c = _residuals(fit.vals, recs, cfg, dv)
             sc = _score(res_c, recs)
             p_add = len(names) + (eff in ("slip_jump", "stribeck"))  # + DV (see _grid)
+            if replaces:
+                p_add += (len(_effect_names(with_)) + (with_ in ("slip_jump", "stribeck"))
+                          - len(_effect_names(replaces)) - (replaces in ("slip_jump", "stribeck")))
             dbic = n_eff * math.log(sc_cur.mse_h / sc.mse_h) - p_add * math.log(n_eff)
             t = _signed_rank_p(sc_cur.block_sse - sc.block_sse)
             gain = sc_cur.mse_h - sc.mse_h
             dreg = sc_cur.regime_sse - sc.regime_sse
             pos = float(np.sum(np.clip(dreg, 0, None)))
-            pred = [REGIMES.index(g) for g in PREDICTS[eff]]
+            pred = [REGIMES.index(g) for g in set(PREDICTS[eff]) | set(PREDICTS.get(with_, ()))]
             in_pred = float(np.sum(np.clip(dreg[pred], 0, None)) / pos) if pos > 0 else 0.0
             reasons = []
             if not dbic > 0:
@@ -805,28 +836,30 @@ def reconcile(
                 effect=eff, params=_public(fit.vals, dv), heldout_rmse=math.sqrt(sc.mse_h), delta_bic=dbic,
                 t_stat=t, t_crit=t_crit, gain_fraction=gain / sc_cur.mse_h, gain_in_predicted=in_pred,
                 gain_over_noise=gain / noise_pow, passed=not reasons, reasons=tuple(reasons),
+                replaces=f"{replaces}->{with_}" if replaces else "",
             ))
-            cands[-1] = (cands[-1], fit.vals)  # type: ignore[assignment]
-        rounds.append(tuple(c for c, _ in cands))
-        passing = [(c, v) for c, v in cands if c.passed]
+            cands[-1] = (cands[-1], fit.vals, fit_free)  # type: ignore[assignment]
+        rounds.append(tuple(c for c, _, _ in cands))
+        passing = [(c, v, f) for c, v, f in cands if c.passed]
         if not passing:
             message = "no further effect passes the held-out test" if accepted else "no missing effect found"
             break
-        best_c, best_v = max(passing, key=lambda cv: cv[0].delta_bic)
+        best_c, best_v, best_free = max(passing, key=lambda cv: cv[0].delta_bic)
         if refits < _MAX_REFITS:
             # before the effect is credited with the gain: the current model refitted from the
             # winner's parameters with the effect taken out.  If that fits the training blocks
             # better than the current model, the candidate's multi-start merely found a better
             # basin of the model we already have (by at least the relevance bar min_gain): take it
             # and test the candidates again, each also started from its fit of this round
-            again = {n: v for n, v in best_v.items() if n not in _effect_names(best_c.effect) and n != "dv"}
+            # (a swapped-out effect's parameters come back from the current model)
+            again = {n: best_v.get(n, x) for n, x in cur.items() if n != "dv"}
             if "dv" in cur:
                 again["dv"] = cur["dv"]
             again = _fit(again, free, recs, cfg, dv).vals
             if train_sse(again) < train_sse(cur) - cfg.min_gain * noise_pow * n_train:
                 cur = again
                 refits += 1
-                carry = {c.effect: v for c, v in cands}
+                carry = {c.effect: v for c, v, _ in cands if not c.replaces}
                 if not accepted:  # the baseline itself was in a worse basin: report the better one
                     share, counts, (rho, lag), baseline = disagreement(cur)
                 continue
@@ -837,13 +870,24 @@ def reconcile(
             f"ΔBIC {best_c.delta_bic:.1f} with n_eff {n_eff:.0f}; held-out blocks improved, signed-rank p {best_c.t_stat:.2g} < {best_c.t_crit:.2g}; "
             f"{best_c.gain_in_predicted:.0%} of the gain in {', '.join(top)}"
         )
-        others = sorted((c for c, _ in cands if c is not best_c), key=lambda c: -c.delta_bic)
+        others = sorted((c for c, _, _ in cands if c is not best_c), key=lambda c: -c.delta_bic)
         if others:
             o = others[0]
             evidence += f"; next best {o.effect} (ΔBIC {o.delta_bic:.1f}{', passes' if o.passed else ''})"
+        if best_c.replaces:
+            # the swapped effect's step (and any after it) is refitted with its alternative
+            old_eff, new_eff = best_c.replaces.split("->")
+            evidence += f"; with {best_c.effect}, {new_eff} fits the training blocks better than {old_eff} and replaces it"
+            j = accepted.index(old_eff)
+            accepted[j] = new_eff
+            for m in range(j, len(accepted)):
+                names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
+                start_m = {n: x for n, x in best_v.items() if n in names_m or n == "dv"}
+                note = f"; replaced {old_eff} when {best_c.effect} was added" if m == j else ""
+                steps[m] = full_step(accepted[m], start_m, names_m, steps[m].evidence + note)
         accepted.append(best_c.effect)
         carry = {}
-        free = free + _effect_names(best_c.effect)
+        free = best_free
         cur = best_v
         steps.append(full_step(best_c.effect, cur, free, evidence))
     if not message:

@@ -90,3 +90,27 @@ def test_hidden_slip_jump_is_named_and_the_gap_shrinks():
     assert r.effects[:1] == ["slip_jump"]
     assert r.steps[0].params["Fs"] / r.steps[0].params["Fc"] == pytest.approx(1.5, rel=0.15)
     assert r.final.rmse <= 0.5 * r.baseline.rmse
+
+
+def test_alternatives_are_the_effects_of_the_same_regimes():
+    from models.reconcile import _alternatives
+
+    assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "stribeck"}
+    assert _alternatives("deadband", [], "dead_time") == ["slip_jump"]
+    assert _alternatives("slip_jump", [], "deadband") == []  # its only alternative is the effect added
+    assert "stribeck" not in _alternatives("actuator_lag", ["slip_jump"], "deadband")
+
+
+@pytest.mark.slow
+def test_lag_named_first_is_swapped_for_the_hidden_dead_time_beside_a_deadband():
+    # planted truth: dead time 30 ms + deadband 0.5 mm on ISA steps (raw command).  A lag alone fits
+    # better than a dead time alone (it absorbs part of the lost motion at reversals) and is named
+    # first; with the deadband added, the search must offer the dead time in its place
+    rec = hidden_record(PRESETS["high"].replace(tau_p=0.0), isa_steps(hold=60.0 / 19),
+                        {"dead_time": (0.03,), "deadband": (0.5e-3,)}, seed=7)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "pair"))
+    db = next(c for rnd in r.rounds[1:] for c in rnd if c.effect == "deadband")
+    assert db.replaces == "actuator_lag->dead_time"
+    assert db.params["theta_s"] == pytest.approx(0.03, rel=0.2)
+    assert db.params["deadband_m"] == pytest.approx(0.5e-3, rel=0.2)
+    assert db.heldout_rmse < 1.1 * r.noise_floor
