@@ -172,7 +172,10 @@ def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float, dt: fl
         if elsewhere and held:
             band = max(elsewhere)
             hold = max(held)
-            if hold > 2.0 * band:
+            # the band seen elsewhere only bounds 2·F_s/S_a from below (a square wave's holds see
+            # little pressure change), so a stop also needs the held range to be a large part of
+            # the record's whole pressure span, as in the fallback below
+            if hold > 2.0 * band and hold > 0.25 * p_span:
                 raise IdentificationError(
                     f"{name}: travel saturated: the stem is held at its {side} stop "
                     f"({np.median([m for m, n in zip(med, near) if n]):.6g} m) while the "
