@@ -158,14 +158,13 @@ def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float, dt: fl
     trim = max(1, int(round(0.05 / dt)))  # half the 0.1 s velocity window: keep slide samples out
     runs = [(a + trim, b - trim) for a, b, s in _runs(still.astype(int)) if s == 1 and b - a > 4 * trim]
     p_span = float(np.ptp(p))
+    med = [float(np.median(x[a:b])) for a, b in runs]
     for side, push in (("upper", 1.0), ("lower", -1.0)):
         x_end = float(x.max() if push > 0 else x.min())
-        at = x >= x.max() - tol if push > 0 else x <= x.min() + tol
-        idx = np.flatnonzero(at)
+        idx = np.flatnonzero(push * (x - x_end) >= -tol)   # within tol of this end
         if idx.size < 100:
             continue
         # still runs at the end of travel: their median within the extreme sample's noise reach
-        med = [float(np.median(x[a:b])) for a, b in runs]
         near = [push * (x_end - m) <= tol + 6 * sx for m in med]
         held = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if n]
         elsewhere = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if not n]

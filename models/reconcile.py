@@ -55,7 +55,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from .errors import IdentificationError, ModelConfigError
-from .identification import ValveData, check_record, noise_std, sg_derivatives, slow_velocity
+from .identification import ValveData, _runs, check_record, noise_std, sg_derivatives, slow_velocity
 from .karnopp import M_KG, SA_M2
 from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, simulate_effects
 
@@ -174,13 +174,6 @@ def smooth_pressure(p: np.ndarray, dt: float, *, scales_s: tuple[float, ...] = (
         out = allowed * ps + (1.0 - allowed) * out
         prev, prev_c = ps, c
     return out if out is not None else p.copy()
-
-
-def _runs(state: np.ndarray) -> list[tuple[int, int, int]]:
-    edges = np.flatnonzero(np.diff(state)) + 1
-    starts = np.concatenate(([0], edges))
-    ends = np.concatenate((edges, [state.size]))
-    return [(int(a), int(b), int(state[a])) for a, b in zip(starts, ends)]
 
 
 def motion_state(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -754,11 +747,14 @@ def reconcile(
     carry: dict[str, dict[str, float]] = {}  # candidates' fits kept as starts across a refit
     n_train = sum(int(r.train.sum()) for r in recs)
 
-    def train_sse(v: dict[str, float]) -> float:
-        return sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(_residuals(v, recs, cfg, dv), recs))
+    def train_sse(v: dict[str, float], res: list[np.ndarray] | None = None) -> float:
+        res = _residuals(v, recs, cfg, dv) if res is None else res
+        return sum(float(np.sum(e[rr.train] ** 2)) for e, rr in zip(res, recs))
 
     while len(accepted) < cfg.max_effects:
-        sc_cur = _score(_residuals(cur, recs, cfg, dv), recs)
+        res_all_cur = _residuals(cur, recs, cfg, dv)  # one simulation of the current model per round
+        sc_cur = _score(res_all_cur, recs)
+        cur_sse = train_sse(cur, res_all_cur)
         excess = (sc_cur.mse_h - noise_pow) / noise_pow
         if excess < cfg.min_gain:
             message = (f"model within the noise: held-out RMSE {math.sqrt(sc_cur.mse_h) * 1e6:.2f} µm vs. noise "
@@ -767,7 +763,6 @@ def reconcile(
         todo = [c for c in cfg.candidates if c not in accepted and _EXCLUSIVE.get(c) not in accepted]
         if not todo:
             break
-        res_all_cur = _residuals(cur, recs, cfg, dv)
         res_cur = np.concatenate([e[~r.train] for e, r in zip(res_all_cur, recs)])
         n_eff = max(2.0, sc_cur.n_h / _tau_int(res_cur, int(10 * cfg.block_s / recs[0].dt)))
         t_crit = cfg.alpha / len(todo)  # Bonferroni over the candidates of this step
@@ -787,7 +782,6 @@ def reconcile(
                 shorts.append(_fit(v, free + names, recs, cfg, dv, max_nfev=_SHORT_NFEV, stride_s=0.016))
             shorts.sort(key=lambda f: f.sse_train)
             fit = min((_fit(f.vals, free + names, recs, cfg, dv) for f in shorts[:2]), key=lambda f: f.sse_train)
-            cur_sse = train_sse(cur)
             if train_sse(fit.vals) > cur_sse:  # the fit got lost: the extension contains the current model
                 v = dict(cur)
                 v.update({n: 0.0 for n in names})
@@ -856,7 +850,7 @@ def reconcile(
             if "dv" in cur:
                 again["dv"] = cur["dv"]
             again = _fit(again, free, recs, cfg, dv).vals
-            if train_sse(again) < train_sse(cur) - cfg.min_gain * noise_pow * n_train:
+            if train_sse(again) < cur_sse - cfg.min_gain * noise_pow * n_train:
                 cur = again
                 refits += 1
                 carry = {c.effect: v for c, v, _ in cands if not c.replaces}

@@ -141,7 +141,6 @@ def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int) ->
     D = int(max_dead_time)
     N = n - D
     y = pv[D:]
-    k = np.arange(D, n, dtype=np.float64)
     x0 = stems - stems[:, :1]
     lo = D - np.arange(D + 1)  # first input sample of the fitted span at each lag
     rows = np.arange(m)

@@ -20,7 +20,7 @@ stuck stem ramps it one way, a compensated load makes it go back and forth.  So 
 stem's holds must see the (smoothed) OP travel mostly one way (:data:`MIN_MONOTONIC` of its
 path net).  What it cannot tell apart: a deadband (backlash) is the same family; the finding
 is "the valve does not follow the OP (stiction or deadband)".  Measured on planted and plant
-windows in ACCURACY.md (issue 3, session 4); compensated loads still read as stick-slip in
+windows in ACCURACY.md (issue 3); compensated loads still read as stick-slip in
 about a third of planted windows.
 """
 
@@ -57,7 +57,7 @@ def _monotonic_share(op: np.ndarray, stem: np.ndarray) -> float:
     stuck stem), small when it goes back and forth (a load the valve follows and compensates)."""
     k = max(3, op.size // 40)
     c = np.cumsum(np.r_[0.0, op])
-    ops = np.r_[np.full(k // 2, np.nan), (c[k:] - c[:-k]) / k, np.full(op.size - (op.size - k + 1) - k // 2, np.nan)]
+    ops = np.r_[np.full(k // 2, np.nan), (c[k:] - c[:-k]) / k, np.full(k - 1 - k // 2, np.nan)]  # centred, NaN ends
     held = np.r_[False, np.diff(stem) == 0, False]
     edges = np.flatnonzero(np.diff(held.astype(np.int8)))
     net = path = 0.0

@@ -30,15 +30,21 @@ N = 4096
 REPEATS = 5
 
 
-def window_set() -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(0)
-    t = np.arange(N, dtype=float)
-    out = {}
+def waves(n: int = N):
+    """``(name, x)`` of unit sines, squares and triangles of periods 25, 60 and 150 samples."""
+    t = np.arange(n, dtype=float)
     for period in (25.0, 60.0, 150.0):
         w = 2 * np.pi * t / period
         for shape, x in (("sine", np.sin(w)), ("square", signal.square(w)), ("triangle", signal.sawtooth(w, 0.5))):
-            out[f"{shape} P={period:g}"] = x
-            out[f"{shape} P={period:g} +1% noise"] = x + 0.01 * rng.standard_normal(N)
+            yield f"{shape} P={period:g}", x
+
+
+def window_set() -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    out = {}
+    for name, x in waves():
+        out[name] = x
+        out[f"{name} +1% noise"] = x + 0.01 * rng.standard_normal(N)
     for name in ("tuning", "disturbance", "stiction-datadriven", "stiction-lugre"):
         sc = dataclasses.replace(CASES[name], setpoint_steps=(SetpointStep(1.0, 5.0),), duration_s=float(N))
         out[f"loop {name}"] = simulate_loop(sc, seed=0).pv

@@ -17,12 +17,11 @@ import time
 
 import numpy as np
 import pytest
-from scipy import signal
 
 from pipeline.diagnosis import DiagnosisConfig, diagnose_window
 
 from .accuracy_sim import CAUSES, make_loop
-from .bench_pipeline import real_windows
+from .bench_pipeline import real_windows, waves
 from .conftest import machine_note
 
 N = 4096
@@ -31,12 +30,7 @@ REPEATS = 3
 
 def windows() -> dict[str, dict]:
     rng = np.random.default_rng(1)
-    t = np.arange(N, dtype=float)
-    out = {}
-    for period in (25.0, 60.0, 150.0):
-        w = 2 * np.pi * t / period
-        for shape, x in (("sine", np.sin(w)), ("square", signal.square(w)), ("triangle", signal.sawtooth(w, 0.5))):
-            out[f"{shape} P={period:g} +5% noise"] = {"x": x + 0.05 * rng.standard_normal(N)}
+    out = {f"{name} +5% noise": {"x": x + 0.05 * rng.standard_normal(N)} for name, x in waves(N)}
     gen = np.random.default_rng(99)
     for i in range(2 * len(CAUSES)):
         loop = make_loop(i, 99, gen)
