@@ -37,6 +37,23 @@ Choices the method leaves open, documented here:
   analysed variance.  This check is ours, not Thornhill's;
 * amplitude: half the 5 %–95 % percentile range of the detrended window (robust half
   peak-to-peak: ``A`` for a square wave of amplitude ``A``, ``0.99 A`` for a sine).
+
+Second detector, for band-passed candidates whose ACF test fails (ours; added because an
+oscillation whose period and amplitude wander keeps regular zero crossings but an ACF that
+dies out within three periods, like a resonance's): **a steady envelope**.  Gaussian noise of
+*any* spectrum (white, red, a random walk, a damped resonance) has, in any band, a Rayleigh
+envelope: the squared envelope ``u = |z|^2`` of the analytic band-passed signal ``z`` is
+exponential, ``q = var(u) / mean(u)^2 = 1`` (Rice 1944, §3.7); a sustained oscillation
+(a sine of amplitude ``A`` in noise of power ``s^2`` in the band) has a Rician envelope and
+``q = (2 A^2 s^2 + s^4) / (A^2 + s^2)^2 < 1``.  Under the Gaussian null, by the delta method
+and Isserlis' theorem, ``q_hat`` has variance ``(4 / n) sum_k |rho_k|^4`` with ``rho`` the
+complex autocorrelation of the band-passed null (here the same power-law background as the
+ACF test; :func:`envelope_test`).  A band passes when ``q_hat`` is ``acf_z`` standard errors
+below 1 *and* the zero crossings of the band-passed signal itself are regular by Thornhill's
+criterion (``r > min_regularity`` over at least ``min_periods`` period estimates
+``T_k = z_{k+2} - z_k``) within the period limits.  The ``acf_z`` threshold is one-sided and
+applied to at most ``max_bands`` bands.  Non-Gaussian non-oscillations (spikes, steps) have
+``q > 1`` and fail.
 """
 
 from __future__ import annotations
@@ -51,7 +68,7 @@ from .errors import PipelineConfigError, SignalError
 from .filters import band_weights
 from .frequency import zero_crossings
 
-__all__ = ["GateConfig", "GateResult", "oscillation_gate", "acf", "regularity"]
+__all__ = ["GateConfig", "GateResult", "oscillation_gate", "acf", "regularity", "envelope_test"]
 
 
 @dataclass(frozen=True)
@@ -286,6 +303,64 @@ def _bandpass(x: np.ndarray, lo: float, hi: float, *, spectrum: np.ndarray | Non
     return fft.irfft(spectrum * weights, x.size)
 
 
+def _analytic(half: np.ndarray, n: int) -> np.ndarray:
+    """Analytic signal of length ``n`` from a one-sided spectrum ``half`` (``rfft`` layout)."""
+    h = np.zeros(n, dtype=np.complex128)
+    h[: half.size] = half
+    h[1:(n + 1) // 2] *= 2.0
+    return fft.ifft(h)
+
+
+def envelope_test(band_spectrum: np.ndarray, null_power: np.ndarray, n: int, *, trim: int) -> tuple[float, float]:
+    """Steadiness of a band-passed signal's envelope against Gaussian noise (module docstring).
+
+    Parameters
+    ----------
+    band_spectrum : ``rfft`` of the window times the band's gain.
+    null_power : power spectrum of the band-passed null at ``rfftfreq(n)`` (gain squared times
+        the background), any scale.
+    n : window length.
+    trim : samples dropped at each end (the circular filter's edge effects; about a period).
+
+    Returns
+    -------
+    (q, z): ``q = var(u) / mean(u)^2`` of the squared envelope ``u`` over the kept samples (1 for
+    Gaussian noise, 0 for a constant amplitude) and ``z = (1 - q) / se`` with
+    ``se^2 = 4 sum_k |rho_k|^4 / n_kept`` (delta method; for complex Gaussian ``z_t``,
+    ``cov(u_t^2 - 4 u_t, u_s^2 - 4 u_s) = 4 |rho_{t-s}|^4`` at unit power, Isserlis' theorem).
+    """
+    u = np.abs(_analytic(band_spectrum, n)[trim:n - trim]) ** 2
+    m = u.mean()
+    if u.size < 2 or not m > 0:
+        return float("nan"), float("nan")
+    q = float(np.mean(u * u) / (m * m) - 1.0)
+    rc = np.abs(_analytic(null_power, n))
+    if not rc[0] > 0:
+        return q, float("nan")
+    se = float(np.sqrt(4.0 * np.sum((rc / rc[0]) ** 4) / u.size))
+    return q, (1.0 - q) / se
+
+
+def _steady_envelope(yy: np.ndarray, band_spectrum: np.ndarray, null_power: np.ndarray, *, config: GateConfig,
+                     max_period: float) -> tuple[float, float, int, float, float] | None:
+    """The second detector (module docstring) on one band-passed candidate ``yy``: its own zero
+    crossings regular (Thornhill's ``r``) and its envelope steadier than Gaussian noise's by
+    ``acf_z`` standard errors.  ``(period, r, n_periods, q, z)`` when it passes, else ``None``."""
+    z = zero_crossings(yy)
+    periods = z[2:] - z[:-2]
+    if periods.size < max(config.min_periods, 2):
+        return None
+    tp = float(periods.mean())
+    sd = float(periods.std(ddof=1))
+    reg = np.inf if sd == 0 else tp / (3.0 * sd)
+    if not (reg > config.min_regularity and config.min_period_samples <= tp <= max_period):
+        return None
+    q, zq = envelope_test(band_spectrum, null_power, yy.size, trim=int(np.ceil(tp)))
+    if not zq >= config.acf_z:
+        return None
+    return tp, float(reg), int(periods.size), q, zq
+
+
 def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfig()) -> GateResult:
     """Decide whether a window oscillates (Thornhill, Huang & Zhang 2003).
 
@@ -351,19 +426,29 @@ def oscillation_gate(x: np.ndarray, *, fs: float, config: GateConfig = GateConfi
             and pers >= need
             and config.min_period_samples <= tp <= max_period
         )
+        steady = None
+        if not passed and band is not None:
+            steady = _steady_envelope(yy, spectrum * weights, weights**2 * background, config=config,
+                                      max_period=max_period)
+            passed = steady is not None
         score = (passed, min(reg, 1e6) * max(pers, 0.0))
         if best is None or score > best[0]:
-            best = (score, band, tp, reg, nper, pers, need)
+            best = (score, band, tp, reg, nper, pers, need, steady)
         if passed:
             break
     if best is None:
         return GateResult(False, nan, amplitude, nan, nan, 0, None,
                           "no regular oscillation: too few ACF zero crossings for the window length")
-    (passed, _), band, tp, reg, nper, pers, need = best
+    (passed, _), band, tp, reg, nper, pers, need, steady = best
+    if steady is not None:  # the envelope test passed: period and regularity from the signal's zero crossings
+        tp, reg, nper, q, zq = steady
     band_hz = None if band is None else (band[0] * fs, band[1] * fs)
     period_s = tp / fs
     where = "" if band is None else f" in band {band_hz[0]:.4g}–{band_hz[1]:.4g} Hz"
-    if passed:
+    if steady is not None:
+        reason = (f"oscillating{where}: period {period_s:.4g} s, zero-crossing regularity r={reg:.2f}, "
+                  f"steady envelope (q={q:.2f}, {zq:.1f} se below Gaussian noise; ACF peaks down to {pers:.2f})")
+    elif passed:
         reason = f"oscillating{where}: period {period_s:.4g} s, regularity r={reg:.2f}, ACF peaks >= {pers:.2f}"
     elif reg <= config.min_regularity:
         reason = f"no regular oscillation: regularity r={reg:.2f} <= {config.min_regularity:g}"

@@ -254,6 +254,11 @@ GATE_CASES = {  # case: truth (oscillating?)
     "drifting coloured noise": False,
     "random walk + AR(1)": False,
     "damped resonance (zeta 0.4-1)": False,
+    # session 4: the failure modes seen in the ISDB misses, truth from the generator
+    "wandering period and amplitude": True,
+    "intermittent (on 60-90 % of the record)": True,
+    "very short (2-3 periods)": True,
+    "spectral bump (zeta 0.2-0.4) in drifting noise": False,
 }
 
 
@@ -273,6 +278,8 @@ def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
     """
     from scipy.signal import lfilter
     n = int(np.exp(rng.uniform(np.log(200), np.log(4096))))
+    if case in _SESSION4_CASES:
+        return _SESSION4_CASES[case](rng, n)
     if GATE_CASES[case]:
         jitter = 0.0
         if case.startswith("short"):
@@ -308,6 +315,86 @@ def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
     if case.startswith("random walk"):
         x = x + np.cumsum(rng.standard_normal(n)) * rng.uniform(0.05, 0.5)
     return x + rng.uniform(0, 0.5) * np.std(x) * rng.standard_normal(n)
+
+
+def _cycles(rng: np.random.Generator, n: int, lengths: np.ndarray, amps: np.ndarray) -> np.ndarray:
+    """A sine, triangle or square wave whose cycle ``k`` lasts ``lengths[k]`` samples and has
+    amplitude ``amps[k]`` (amplitude interpolated between cycle centres), random start phase."""
+    knots = np.r_[0.0, np.cumsum(lengths)]
+    t = np.arange(n) + rng.uniform(0, lengths[0])
+    phase = np.interp(t, knots, 2 * np.pi * np.arange(knots.size))
+    amp = np.interp(t, knots[:-1] + lengths / 2, amps)
+    shape = rng.choice(["sine", "triangle", "square"])
+    s = {"sine": np.sin, "triangle": lambda p: 2 / np.pi * np.arcsin(np.sin(p)),
+         "square": lambda p: np.sign(np.sin(p))}[str(shape)](phase)
+    return amp * s
+
+
+def _coloured(rng: np.random.Generator, n: int, sd: float) -> np.ndarray:
+    """AR(1) noise (phi 0-0.95) of standard deviation ``sd`` plus a random-walk drift."""
+    noise = _ar1(rng, n, rng.uniform(0.0, 0.95))
+    noise = noise / max(np.std(noise), 1e-12) * sd
+    return noise + np.cumsum(rng.standard_normal(n)) * rng.uniform(0, 0.02)
+
+
+def _wandering(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Oscillation whose period wanders slowly (log-period AR(1) over cycles, phi 0.7, sd
+    10-25 %, plus 5-10 % independent jitter per cycle) and whose amplitude varies per cycle
+    (log-normal, sd 0.2-0.4), with 0-3 level steps of up to 1.5 amplitudes and coloured noise
+    (sd 0.1-0.5); mean period 8 samples to n/10 (at least 10 cycles), n 500-4096."""
+    n = int(np.exp(rng.uniform(np.log(500), np.log(4096))))
+    period = float(np.exp(rng.uniform(np.log(8), np.log(n / 10))))
+    m = int(2 * n / period) + 3
+    sd, e = rng.uniform(0.1, 0.25), np.zeros(m)
+    for k in range(1, m):
+        e[k] = 0.7 * e[k - 1] + np.sqrt(1 - 0.49) * sd * rng.standard_normal()
+    lengths = period * np.exp(e + rng.uniform(0.05, 0.1) * rng.standard_normal(m))
+    amps = np.exp(rng.uniform(0.2, 0.4) * rng.standard_normal(m))
+    x = _cycles(rng, n, lengths, amps)
+    for _ in range(int(rng.integers(0, 4))):
+        x[int(rng.integers(0, n)):] += rng.uniform(-1.5, 1.5)
+    return x + _coloured(rng, n, rng.uniform(0.1, 0.5))
+
+
+def _intermittent(rng: np.random.Generator, n: int) -> np.ndarray:
+    """A regular oscillation (5 % jitter) present on 60-90 % of the record, in 1-3 bursts, the
+    rest coloured noise only; at least 8 periods in the record."""
+    period = float(np.exp(rng.uniform(np.log(5), np.log(n / 12))))
+    m = int(n / period) + 3
+    x = _cycles(rng, n, period * (1 + 0.05 * rng.standard_normal(m)), np.ones(m))
+    off = int((1 - rng.uniform(0.6, 0.9)) * n)
+    cuts = np.sort(rng.integers(0, n - off, int(rng.integers(1, 4))))
+    pieces = np.diff(np.r_[0, np.sort(rng.uniform(0, 1, cuts.size - 1)), 1] * off).astype(int)
+    for c, ln in zip(cuts, pieces):
+        x[c:c + ln] = 0.0
+    return x + _coloured(rng, n, rng.uniform(0.1, 0.5))
+
+
+def _very_short(rng: np.random.Generator, n: int) -> np.ndarray:
+    """2-3 periods of a regular oscillation in 200-1000 samples, coloured noise sd 0.1-0.3."""
+    n = int(rng.integers(200, 1000))
+    period = n / rng.uniform(2.0, 3.0)
+    return _cycles(rng, n, np.full(5, period), np.ones(5)) + _coloured(rng, n, rng.uniform(0.1, 0.3))
+
+
+def _bump(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Noise through a second-order resonance (zeta 0.2-0.4, period 8 to n/8 samples) on a
+    drifting AR(1) (phi 0.9-0.999) with a random walk: a spectral bump, not an oscillation."""
+    from scipy.signal import lfilter
+    zeta = rng.uniform(0.2, 0.4)
+    w = 2 * np.pi / float(np.exp(rng.uniform(np.log(8), np.log(n / 8))))
+    a1, a2 = -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(1 - zeta**2)), np.exp(-2 * zeta * w)
+    res = lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n + 500))[500:]
+    drift = _ar1(rng, n, rng.uniform(0.9, 0.999)) + np.cumsum(rng.standard_normal(n)) * rng.uniform(0.0, 0.2)
+    return res / np.std(res) + rng.uniform(0.3, 1.0) * drift / max(np.std(drift), 1e-12)
+
+
+_SESSION4_CASES = {
+    "wandering period and amplitude": _wandering,
+    "intermittent (on 60-90 % of the record)": _intermittent,
+    "very short (2-3 periods)": _very_short,
+    "spectral bump (zeta 0.2-0.4) in drifting noise": _bump,
+}
 
 
 def gate_benchmark(n_per_case: int, seed: int, config=None):
