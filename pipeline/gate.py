@@ -80,7 +80,9 @@ class GateConfig:
     min_regularity : r above which the ACF zero crossings count as regular (paper value 1).
     min_persistence : lowest ACF peak over the first three periods (share of the variance that
         is periodic).
-    acf_z : the ACF peaks must also exceed ``acf_z`` standard errors of a filtered white noise's ACF.
+    acf_z : the ACF peaks must also exceed ``acf_z`` standard errors of the null's ACF; and a
+        band-passed candidate's envelope must be ``acf_z`` standard errors steadier than
+        Gaussian noise's for the second detector (:func:`envelope_test`).
     min_periods : fewest full-period estimates from ACF zero crossings.
     min_period_samples : shortest period considered an oscillation, in samples.
     max_bands : spectral peaks tried with band-pass filtering when the raw ACF is irregular.
