@@ -48,11 +48,11 @@ exponential, ``q = var(u) / mean(u)^2 = 1`` (Rice 1944, §3.7); a sustained osci
 ``q = (2 A^2 s^2 + s^4) / (A^2 + s^2)^2 < 1``.  Under the Gaussian null, by the delta method
 and Isserlis' theorem, ``q_hat`` has variance ``(4 / n) sum_k |rho_k|^4`` with ``rho`` the
 complex autocorrelation of the band-passed null (here the same power-law background as the
-ACF test; :func:`envelope_test`).  A band passes when ``q_hat`` is ``acf_z`` standard errors
-below 1 *and* the zero crossings of the band-passed signal itself are regular by Thornhill's
+ACF test; :func:`envelope_test`).  A band passes when ``q_hat`` is below 1 by ``z`` standard
+errors, ``z`` the one-sided level of ``acf_z`` (``P = 0.00135`` for 3) Bonferroni-corrected over
+the ``max_bands`` candidates (3.32 for 3 bands), *and* the zero crossings of the band-passed signal itself are regular by Thornhill's
 criterion (``r > min_regularity`` over at least ``min_periods`` period estimates
-``T_k = z_{k+2} - z_k``) within the period limits.  The ``acf_z`` threshold is one-sided and
-applied to at most ``max_bands`` bands.  Non-Gaussian non-oscillations (spikes, steps) have
+``T_k = z_{k+2} - z_k``) within the period limits.  Non-Gaussian non-oscillations (spikes, steps) have
 ``q > 1`` and fail.
 """
 
@@ -62,7 +62,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft, signal
+from scipy import fft, signal, special
 
 from .errors import PipelineConfigError, SignalError
 from .filters import band_weights
@@ -343,11 +343,18 @@ def envelope_test(band_spectrum: np.ndarray, null_power: np.ndarray, n: int, *, 
     return q, (1.0 - q) / se
 
 
+@lru_cache(maxsize=8)
+def _envelope_z(z: float, n_tests: int) -> float:
+    """One-sided threshold for the envelope test: the level of ``z`` (``P(Z > z)``), Bonferroni
+    corrected over the ``n_tests`` band candidates a window may try."""
+    return float(-special.ndtri(special.ndtr(-z) / max(n_tests, 1)))
+
+
 def _steady_envelope(yy: np.ndarray, band_spectrum: np.ndarray, null_power: np.ndarray, *, config: GateConfig,
                      max_period: float) -> tuple[float, float, int, float, float] | None:
     """The second detector (module docstring) on one band-passed candidate ``yy``: its own zero
-    crossings regular (Thornhill's ``r``) and its envelope steadier than Gaussian noise's by
-    ``acf_z`` standard errors.  ``(period, r, n_periods, q, z)`` when it passes, else ``None``."""
+    crossings regular (Thornhill's ``r``) and its envelope steadier than Gaussian noise's
+    (:func:`_envelope_z` standard errors).  ``(period, r, n_periods, q, z)`` when it passes, else ``None``."""
     z = zero_crossings(yy)
     periods = z[2:] - z[:-2]
     if periods.size < max(config.min_periods, 2):
@@ -358,7 +365,7 @@ def _steady_envelope(yy: np.ndarray, band_spectrum: np.ndarray, null_power: np.n
     if not (reg > config.min_regularity and config.min_period_samples <= tp <= max_period):
         return None
     q, zq = envelope_test(band_spectrum, null_power, yy.size, trim=int(np.ceil(tp)))
-    if not zq >= config.acf_z:
+    if not zq >= _envelope_z(config.acf_z, config.max_bands):
         return None
     return tp, float(reg), int(periods.size), q, zq
 
