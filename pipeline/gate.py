@@ -43,17 +43,19 @@ oscillation whose period and amplitude wander keeps regular zero crossings but a
 dies out within three periods, like a resonance's): **a steady envelope**.  Gaussian noise of
 *any* spectrum (white, red, a random walk, a damped resonance) has, in any band, a Rayleigh
 envelope: the squared envelope ``u = |z|^2`` of the analytic band-passed signal ``z`` is
-exponential, ``q = var(u) / mean(u)^2 = 1`` (Rice 1944, §3.7); a sustained oscillation
-(a sine of amplitude ``A`` in noise of power ``s^2`` in the band) has a Rician envelope and
-``q = (2 A^2 s^2 + s^4) / (A^2 + s^2)^2 < 1``.  Under the Gaussian null, by the delta method
-and Isserlis' theorem, ``q_hat`` has variance ``(4 / n) sum_k |rho_k|^4`` with ``rho`` the
-complex autocorrelation of the band-passed null (here the same power-law background as the
-ACF test; :func:`envelope_test`).  A band passes when ``q_hat`` is below 1 by ``z`` standard
-errors, ``z`` the one-sided level of ``acf_z`` (``P = 0.00135`` for 3) Bonferroni-corrected over
-the ``max_bands`` candidates (3.32 for 3 bands), *and* the zero crossings of the band-passed signal itself are regular by Thornhill's
-criterion (``r > min_regularity`` over at least ``min_periods`` period estimates
-``T_k = z_{k+2} - z_k``) within the period limits.  Non-Gaussian non-oscillations (spikes, steps) have
-``q > 1`` and fail.
+exponential, ``q = var(u) / mean(u)^2 = 1`` (Rice 1944-45, "Mathematical analysis of random
+noise", Bell Syst. Tech. J. 23:282-332, 24:46-156: the envelope of Gaussian noise, and of a
+sine plus noise).  A sustained oscillation (a sine of analytic amplitude ``A`` in noise of
+power ``s^2`` in the band) has a Rician envelope, ``q = (2 A^2 s^2 + s^4) / (A^2 + s^2)^2 < 1``.
+Under the Gaussian null, by the delta method and Isserlis' theorem (Isserlis 1918, Biometrika
+12:134-139), ``q_hat`` has variance ``(4 / n) sum_k |rho_k|^4``, ``rho`` the complex
+autocorrelation of the band-passed null (the same power-law background as the ACF test;
+:func:`envelope_test`).  A band passes when ``q_hat`` is below 1 by ``z`` standard errors,
+``z`` the one-sided level of ``acf_z`` (``P = 0.00135`` for 3) Bonferroni-corrected over the
+``max_bands`` candidates (3.32 for 3 bands), *and* the zero crossings of the band-passed
+signal itself are regular by Thornhill's criterion (``r > min_regularity`` over at least
+``min_periods`` period estimates ``T_k = z_{k+2} - z_k``) within the period limits.
+Non-Gaussian non-oscillations (spikes, steps) have ``q > 1`` and fail.
 """
 
 from __future__ import annotations
