@@ -352,7 +352,7 @@ STICK_CASES = {  # case: truth (the valve sticks?)
 
 
 def stick_case(case: str, rng: np.random.Generator, seed: int):
-    """One planted window (751 samples at 1 s) for :data:`STICK_CASES`: (pv, op, sp) or None.
+    """One planted window (751 samples at 1 s) for :data:`STICK_CASES`: (pv, op, sp, stem) or None.
 
     A FOPDT plant (gain 0.5-3, tau 5-40 s, dead time 0.1-0.5 tau; near-integrating: tau
     2000-20000 s), a 751 s warm-up at the set point 50, then 2-4 set-point steps of 2-10 % at random times, measurement noise 0.5-5 %
@@ -401,7 +401,7 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
             continue
         if case.startswith("stiction") and limit_cycles(sim.mv[-751:]) >= 4:
             continue
-        return sim.pv[-751:], sim.op[-751:], sim.sp[-751:]
+        return sim.pv[-751:], sim.op[-751:], sim.sp[-751:], sim.mv[-751:]
     return None
 
 
@@ -415,7 +415,7 @@ def stick_benchmark(n_per_case: int, seed: int):
         for i in range(n_per_case):
             w = stick_case(case, rng, seed + i)
             if w is not None:
-                r = stick_slip_episodes(w[0], w[1])
+                r = stick_slip_episodes(w[0], w[1], w[2])
                 found[case].append(bool(r and r.episodes))
     tpr = np.mean([v for c, t in STICK_CASES.items() if t for v in found[c]])
     tnr = 1 - np.mean([v for c, t in STICK_CASES.items() if not t for v in found[c]])
