@@ -48,6 +48,8 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import lfilter
 
+from .jit import compile_cached
+
 __all__ = ["HammersteinFit", "StictionTest", "stiction_stem", "hammerstein_fit", "stiction_test"]
 
 
@@ -78,23 +80,29 @@ def stiction_stem(op: np.ndarray, fs: np.ndarray, fd: np.ndarray, force0: np.nda
     -------
     (m, n) array of stem positions.
     """
-    op = np.asarray(op, dtype=np.float64)
-    fs = np.asarray(fs, dtype=np.float64)
-    fd = np.asarray(fd, dtype=np.float64)
+    op = np.ascontiguousarray(op, dtype=np.float64)
+    fs = np.ascontiguousarray(fs, dtype=np.float64)
+    fd = np.ascontiguousarray(fd, dtype=np.float64)
+    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), fs.shape).copy()
+    return _stems(op, fs, fd, ur)
+
+
+@compile_cached
+def _stems(op, fs, fd, ur):
+    """Kernel of :func:`stiction_stem` (compiled): one candidate at a time, sample by sample."""
     m, n = fs.size, op.size
     out = np.empty((m, n))
-    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), (m,)).copy()
-    x = op[0] - ur
-    out[:, 0] = x
-    du = np.diff(op)
-    for k in range(1, n):
-        ur += du[k - 1]
-        slip = np.abs(ur) > fs
-        if slip.any():
-            s = np.sign(ur)
-            x = np.where(slip, x + ur - s * fd, x)
-            ur = np.where(slip, s * fd, ur)
-        out[:, k] = x
+    for j in range(m):
+        u = ur[j]
+        x = op[0] - u
+        out[j, 0] = x
+        for k in range(1, n):
+            u += op[k] - op[k - 1]
+            if abs(u) > fs[j]:
+                s = 1.0 if u > 0 else -1.0
+                x = x + u - s * fd[j]
+                u = s * fd[j]
+            out[j, k] = x
     return out
 
 
