@@ -50,7 +50,7 @@ class StickSlip:
 
 
 MAX_SAMPLES = 768
-MIN_RAMP_SHARE = 0.7
+MIN_RAMP_SHARE = 0.8
 
 
 def _holds(stem: np.ndarray) -> list[tuple[int, int]]:
