@@ -15,13 +15,12 @@ lag with dead time) fitted to the window against the linear model of the same fa
 (:func:`pipeline.hammerstein.stiction_test`).  A set-point step is then no false alarm (the
 controller's kick is in the OP, and the linear model follows it), and a slip with no OP step
 is what only the stiction model explains.  A held stem and a load that the valve follows and
-cancels predict the same PV while it lasts;
-what differs is the OP.  With the stem held the PV is at rest, the control error is constant
-between set-point changes, and the PI output is a straight ramp, kicked and re-sloped only at
-set-point changes; a compensated load moves the error with it and the OP curves.  So straight
-PI ramps (one line per stretch between set-point changes) must explain at least
-:data:`MIN_RAMP_SHARE` of the OP's variance while the fitted stem is held
-(:func:`_ramp_share`).  What it cannot tell apart: a deadband (backlash) is the same family;
+cancels predict the same PV while it lasts; what differs is the OP.  With the stem held the PV
+is at rest, the control error is constant between set-point changes, and the PI output is a
+straight ramp, kicked and re-sloped only at set-point changes; a compensated load moves the
+error with it and the OP curves.  So straight PI ramps (one line per stretch between
+set-point changes) must explain at least :data:`MIN_RAMP_SHARE` of the OP's variance while the
+fitted stem is held (:func:`_ramp_share`).  What it cannot tell apart: a deadband (backlash) is the same family;
 the finding is "the valve does not follow the OP (stiction or deadband)".  Measured on planted
 and plant windows in ACCURACY.md (issue 3).
 """
@@ -64,15 +63,16 @@ def _ramp_share(op: np.ndarray, stem: np.ndarray, sp: np.ndarray | None = None) 
     """Share of the OP's variance during the fitted stem's holds that PI ramps explain.
 
     While the stem is held the PV is at rest (noise aside), so the control error is constant
-    between set-point changes, and a PI controller's output ``kc e + ki sum(e)`` is a straight
-    line in time, with a kick and a new slope at each set-point change (the PI law ``u = kc e +
-    ki ∫e``): the OP ramps while the PV sits still (Yamashita 2006).  A load that
-    the valve follows and the loop compensates moves the error with it, and the OP curves with
-    the load.  So fit, in every hold longer than ``n/40`` samples, one straight line to the OP
-    between consecutive set-point changes and return ``1 - SS_res / SS_tot`` pooled over
-    the holds (``SS_tot`` about each hold's mean).  A ramp reversed by a set-point step is a
-    stuck valve's, a reversal with the set point unchanged is not.  0 when no hold is long
-    enough."""
+    between set-point changes, and a PI controller's output ``kc e + ki ∫e`` is a straight
+    line in time, with a kick and a new slope at each set-point change: the OP ramps while the
+    PV sits still (Yamashita 2006).  A load that the valve follows and the loop compensates
+    moves the error with it, and the OP curves with the load.  So fit, in every hold longer
+    than ``n/40`` samples, one straight line to the OP between consecutive set-point changes
+    and return ``1 - SS_res / SS_tot`` pooled over the holds (``SS_tot`` about each hold's
+    mean).  A ramp reversed by a set-point step is a stuck valve's, a reversal with the set
+    point unchanged is not.  0 when no hold is long enough.  Known limitation: a set point that
+    changes at nearly every sample (a cascade's remote set point) leaves pieces too short to
+    judge, and the test then vouches for any OP (ACCURACY.md, issue 3, session 4)."""
     n = op.size
     k = max(3, n // 40)
     brk = np.flatnonzero(np.diff(sp) != 0) + 1 if sp is not None else np.zeros(0, dtype=int)
