@@ -59,6 +59,20 @@ def _holds(stem: np.ndarray) -> list[tuple[int, int]]:
     return [(a, b + 1) for a, b in zip(edges[::2], edges[1::2])]
 
 
+def _setpoint_moves(sp: np.ndarray, k: int) -> np.ndarray:
+    """Indices where the set point changes, as breaks of the PI ramps: changes less than ``k``
+    samples apart form one move (an operator's clicks); a move that goes on for more than ``k``
+    samples (a cascade's wandering remote set point) is no step, and gives no breaks."""
+    c = np.flatnonzero(np.diff(sp) != 0) + 1
+    if c.size == 0:
+        return c
+    group = np.r_[0, np.cumsum(np.diff(c) >= k)]  # consecutive changes < k apart: one move
+    first, last = np.full(group[-1] + 1, c[-1]), np.zeros(group[-1] + 1, dtype=int)
+    np.minimum.at(first, group, c)
+    np.maximum.at(last, group, c)
+    return c[(last - first)[group] <= k]
+
+
 def _ramp_share(op: np.ndarray, stem: np.ndarray, sp: np.ndarray | None = None) -> float:
     """Share of the OP's variance during the fitted stem's holds that PI ramps explain.
 
@@ -67,15 +81,15 @@ def _ramp_share(op: np.ndarray, stem: np.ndarray, sp: np.ndarray | None = None) 
     line in time, with a kick and a new slope at each set-point change: the OP ramps while the
     PV sits still (Yamashita 2006).  A load that the valve follows and the loop compensates
     moves the error with it, and the OP curves with the load.  So fit, in every hold longer
-    than ``n/40`` samples, one straight line to the OP between consecutive set-point changes
-    and return ``1 - SS_res / SS_tot`` pooled over the holds (``SS_tot`` about each hold's
-    mean).  A ramp reversed by a set-point step is a stuck valve's, a reversal with the set
-    point unchanged is not.  0 when no hold is long enough.  Known limitation: a set point that
-    changes at nearly every sample (a cascade's remote set point) leaves pieces too short to
-    judge, and the test then vouches for any OP (ACCURACY.md, issue 3, session 4)."""
+    than ``k = n/40`` samples, one straight line to the OP between consecutive set-point
+    changes (:func:`_setpoint_moves`: the clicks of one move, each a break; a set point that
+    keeps moving for more than ``k`` samples, none) and return ``1 - SS_res / SS_tot`` pooled
+    over the holds (``SS_tot`` about each hold's mean).  A ramp reversed by a set-point step is
+    a stuck valve's, a reversal with the set point unchanged is not.  0 when no hold is long
+    enough."""
     n = op.size
     k = max(3, n // 40)
-    brk = np.flatnonzero(np.diff(sp) != 0) + 1 if sp is not None else np.zeros(0, dtype=int)
+    brk = _setpoint_moves(sp, k) if sp is not None else np.zeros(0, dtype=int)
     ss_res = ss_tot = 0.0
     for a, b in _holds(stem):
         if b - a <= k:

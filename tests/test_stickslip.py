@@ -113,7 +113,19 @@ def test_ramp_share_of_the_op_while_the_stem_is_held():
     assert _ramp_share(tri, stem, sp) == pytest.approx(1.0)
     tri = np.where(t < 400, 0.01 * t, 8.0 - 0.01 * t)
     assert _ramp_share(tri, stem) < 0.05
+    # a set point that keeps moving (a cascade's) earns no breaks: a wandering OP stays unexplained
+    sp = 50.0 + np.round(np.sin(2 * np.pi * 3 * t / n), 2)
+    assert _ramp_share(np.sin(2 * np.pi * 4 * t / n), stem, sp) < 0.05
     assert _ramp_share(0.01 * t, t) == 0.0  # never held
     # two holds: a ramp each, a slip between (pooled)
     stem = np.where(t < 500, 0.0, 1.0)
     assert _ramp_share(np.where(t < 500, 0.01 * t, 10.0 - 0.01 * t), stem) == pytest.approx(1.0)
+
+
+def test_setpoint_moves_group_clicks_and_skip_a_wandering_set_point():
+    from pipeline.stickslip import _setpoint_moves
+
+    sp = np.r_[np.zeros(10), np.ones(2), 2 * np.ones(20), 3 + np.arange(30.0), 40 * np.ones(10)]
+    # two clicks 2 samples apart are one move (both break); the 30-sample ramp is no step
+    np.testing.assert_array_equal(_setpoint_moves(sp, 5), [10, 12])
+    assert _setpoint_moves(np.full(9, 3.0), 3).size == 0
