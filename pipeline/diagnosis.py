@@ -214,7 +214,7 @@ def diagnose_window(
     if config.method == "robust":
         diag = _diagnose_robust(x, fs=fs, config=config, gate=gate, n_filled=n_filled, op=op, notes=notes)
         if stick_slip and diag.verdict == "not_oscillating" and op is not None and sp is not None:  # x is the PV
-            diag = _with_stick_slip(diag, pv, op, config)
+            diag = _with_stick_slip(diag, pv, op, config, sp=sp)
         return diag
     if not gate.oscillating:
         return WindowDiagnosis("not_oscillating", gate.reason, gate, n_filled=n_filled)
@@ -279,11 +279,11 @@ def _usable_op(op: np.ndarray | None, x: np.ndarray, config: DiagnosisConfig) ->
     return detrend_linear(filled)
 
 
-def _with_stick_slip(diag: WindowDiagnosis, pv, op, config: DiagnosisConfig) -> WindowDiagnosis:
+def _with_stick_slip(diag: WindowDiagnosis, pv, op, config: DiagnosisConfig, *, sp) -> WindowDiagnosis:
     """Add the stuck-valve episodes (:mod:`pipeline.stickslip`) to a non-oscillating window
-    whose PV and OP are both known."""
+    whose PV, OP and SP are known."""
     series = []
-    for v in (pv, op):
+    for v in (pv, op, sp):
         v = np.asarray(v, dtype=np.float64)
         if v.shape != np.shape(pv):
             return diag

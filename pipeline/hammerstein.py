@@ -15,8 +15,9 @@ This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & M
 "Control loop performance assessment. 2. Hammerstein model approach for stiction diagnosis",
 Ind. Eng. Chem. Res. 44:6719–6728) and Jelali (2008, "Estimation of valve stiction in control
 loops using separable least-squares and global search algorithms", J. Process Control
-18:632–642): the stiction parameters by a global grid search, the linear part by separable
-least squares (for each pole and dead time the gain and offset are linear; the
+18:632–642): the stiction parameters by a global grid search, refined by a finer grid around
+its best point; the linear part by separable least squares (for each pole and dead time the
+gain and offset are linear; the
 cross-correlations of every candidate stem with the PV at every dead time come from one
 matrix product per pole).  The linear model is the ``fs = fd = 0`` member of the family.
 
@@ -46,6 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import lfilter
+
+from .jit import compile_cached
 
 __all__ = ["HammersteinFit", "StictionTest", "stiction_stem", "hammerstein_fit", "stiction_test"]
 
@@ -77,23 +80,29 @@ def stiction_stem(op: np.ndarray, fs: np.ndarray, fd: np.ndarray, force0: np.nda
     -------
     (m, n) array of stem positions.
     """
-    op = np.asarray(op, dtype=np.float64)
-    fs = np.asarray(fs, dtype=np.float64)
-    fd = np.asarray(fd, dtype=np.float64)
+    op = np.ascontiguousarray(op, dtype=np.float64)
+    fs = np.ascontiguousarray(fs, dtype=np.float64)
+    fd = np.ascontiguousarray(fd, dtype=np.float64)
+    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), fs.shape).copy()
+    return _stems(op, fs, fd, ur)
+
+
+@compile_cached
+def _stems(op, fs, fd, ur):
+    """Kernel of :func:`stiction_stem` (compiled): one candidate at a time, sample by sample."""
     m, n = fs.size, op.size
     out = np.empty((m, n))
-    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), (m,)).copy()
-    x = op[0] - ur
-    out[:, 0] = x
-    du = np.diff(op)
-    for k in range(1, n):
-        ur += du[k - 1]
-        slip = np.abs(ur) > fs
-        if slip.any():
-            s = np.sign(ur)
-            x = np.where(slip, x + ur - s * fd, x)
-            ur = np.where(slip, s * fd, ur)
-        out[:, k] = x
+    for j in range(m):
+        u = ur[j]
+        x = op[0] - u
+        out[j, 0] = x
+        for k in range(1, n):
+            u += op[k] - op[k - 1]
+            if abs(u) > fs[j]:
+                s = 1.0 if u > 0 else -1.0
+                x = x + u - s * fd[j]
+                u = s * fd[j]
+            out[j, k] = x
     return out
 
 
@@ -129,12 +138,14 @@ def _cumsum0(f: np.ndarray) -> np.ndarray:
     return c
 
 
-def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int) -> HammersteinFit:
+def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int,
+                    poles: np.ndarray | None = None) -> HammersteinFit:
     """Fit ``pv(k) = K G_a(q) x(k - d) + c + c' a^k`` for every stem ``x`` (rows of
     ``stems``), best over the pole grid and ``d = 0 … max_dead_time`` (separable least squares,
     see the module docstring).  ``c' a^k`` is the free response of the lag from its unknown
     state at the window's start (for a pole near 1 it is the drift of an integrating PV); the
-    input enters as ``x - x(0)``.  All fits use the same samples ``max_dead_time … n-1``."""
+    input enters as ``x - x(0)``.  All fits use the same samples ``max_dead_time … n-1``.
+    ``poles``: the poles searched (default :func:`_time_constants`)."""
     pv = np.asarray(pv, dtype=np.float64)
     stems = np.atleast_2d(np.asarray(stems, dtype=np.float64))
     m, n = stems.shape
@@ -149,7 +160,7 @@ def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int) ->
     best_d = np.zeros(m, dtype=int)
     best_k = np.zeros(m)
     t = np.arange(N, dtype=np.float64)
-    for a in _time_constants(n):
+    for a in (_time_constants(n) if poles is None else poles):
         # nuisance regressors over the span: offset and free response a^t, orthonormalised
         # (q1 = 1/sqrt N, q2 = (a^t - mean) / norm)
         g = a ** t if a > 0 else (t == 0).astype(np.float64)
@@ -267,26 +278,44 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     # static friction x dynamic share fd/fs x initial net force / fs
     g = np.array(np.meshgrid(fs, [0.0, 0.5, 1.0], [-0.75, 0.0, 0.75], indexing="ij")).reshape(3, -1)
     FS, FD, F0 = np.r_[0.0, g[0]], np.r_[0.0, g[0] * g[1]], np.r_[0.0, g[0] * g[2]]
-    stems = stiction_stem(op, FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
-    moves = np.ptp(stems, axis=1) > 0  # a stem that never moves predicts nothing
-    moves[0] = True
-    FS, FD, stems = FS[moves], FD[moves], stems[moves]
+    h = L // 2 if L > 1 else 0
+
+    def fit_grid(FS, FD, F0, poles=None):
+        stems = stiction_stem(op, FS, FD, F0)
+        moves = np.ptp(stems, axis=1) > 0  # a stem that never moves predicts nothing
+        moves[0] |= FS[0] == 0
+        FS, FD, F0, stems = FS[moves], FD[moves], F0[moves], stems[moves]
+        # unmeasured slow disturbances: the same high-pass (less an L-sample moving average) on
+        # the PV and on every stem keeps the linear relation and drops what the OP did not cause
+        # (L/2 samples at each end, where the average is one-sided, are left out)
+        if L > 1:
+            stems_w = (stems - uniform_filter1d(stems, L, axis=1, mode="nearest"))[:, h:n - h]
+        else:
+            stems_w = stems
+        return FS, FD, F0, stems, stems_w, hammerstein_fit(pv_w, stems_w, max_dead_time=D, poles=poles)
+
+    pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h] if L > 1 else pv
+    FS, FD, F0, stems, stems_w, fit = fit_grid(FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
     if stems.shape[0] < 2:
         return None
-    # unmeasured slow disturbances: the same high-pass (less an L-sample moving average) on
-    # the PV and on every stem keeps the linear relation and drops what the OP did not cause
-    # (L/2 samples at each end, where the average is one-sided, are left out)
-    if L > 1:
-        h = L // 2
-        pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h]
-        stems_w = (stems - uniform_filter1d(stems, L, axis=1, mode="nearest"))[:, h:n - h]
-    else:
-        pv_w, stems_w = pv, stems
-    fit = hammerstein_fit(pv_w, stems_w, max_dead_time=D)
     i = 1 + int(np.argmin(fit.sse[1:]))
     sse_lin, sse_st = float(fit.sse[0]), float(fit.sse[i])
     if not sse_lin > 0:
         return None
+    # second, finer pass around the best stiction candidate (the slip times hinge on fs and the
+    # initial force together: the coarse grid can miss a slip by tens of samples), over the
+    # coarse fit's pole and its two neighbours; same family, same parameters
+    poles = _time_constants(n)
+    j = int(np.argmin(np.abs(poles - fit.pole[i])))
+    g = np.array(np.meshgrid(FS[i] * np.array([0.8, 0.9, 1.0, 1.12, 1.25]), [0.0, 0.25, 0.5, 0.75, 1.0],
+                             np.linspace(-0.9, 0.9, 7), indexing="ij")).reshape(3, -1)
+    g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
+    if g.shape[1]:
+        fine = fit_grid(g[0], g[0] * g[1], g[0] * g[2], poles=poles[max(j - 1, 0):j + 2])
+        k = int(np.argmin(fine[-1].sse))
+        if fine[-1].sse[k] < sse_st:
+            FS, FD, _, stems, stems_w, fit = fine
+            i, sse_st = k, float(fit.sse[k])
     r = _residual(pv_w, stems_w[i], float(fit.pole[i]), int(fit.dead_time[i]), D)
     r1 = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.99))
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)

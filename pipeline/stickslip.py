@@ -15,13 +15,14 @@ lag with dead time) fitted to the window against the linear model of the same fa
 (:func:`pipeline.hammerstein.stiction_test`).  A set-point step is then no false alarm (the
 controller's kick is in the OP, and the linear model follows it), and a slip with no OP step
 is what only the stiction model explains.  A held stem and a load that the valve follows and
-cancels predict the same PV while it lasts; what differs is the OP: integral action against a
-stuck stem ramps it one way, a compensated load makes it go back and forth.  So the fitted
-stem's holds must see the (smoothed) OP travel mostly one way (:data:`MIN_MONOTONIC` of its
-path net).  What it cannot tell apart: a deadband (backlash) is the same family; the finding
-is "the valve does not follow the OP (stiction or deadband)".  Measured on planted and plant
-windows in ACCURACY.md (issue 3); compensated loads still read as stick-slip in
-about a third of planted windows.
+cancels predict the same PV while it lasts; what differs is the OP.  With the stem held the PV
+is at rest, the control error is constant between set-point changes, and the PI output is a
+straight ramp, kicked and re-sloped only at set-point changes; a compensated load moves the
+error with it and the OP curves.  So straight PI ramps (one line per stretch between
+set-point changes) must explain at least :data:`MIN_RAMP_SHARE` of the OP's variance while the
+fitted stem is held (:func:`_ramp_share`).  What it cannot tell apart: a deadband (backlash) is the same family;
+the finding is "the valve does not follow the OP (stiction or deadband)".  Measured on planted
+and plant windows in ACCURACY.md (issue 3).
 """
 
 from __future__ import annotations
@@ -48,30 +49,67 @@ class StickSlip:
 
 
 MAX_SAMPLES = 768
-MIN_MONOTONIC = 0.5
+MIN_RAMP_SHARE = 0.8
 
 
-def _monotonic_share(op: np.ndarray, stem: np.ndarray) -> float:
-    """Share of the (smoothed) OP's path length while the fitted stem is held that is net
-    travel: 1 when the OP ramps one way through every stuck phase (integral action against a
-    stuck stem), small when it goes back and forth (a load the valve follows and compensates)."""
-    k = max(3, op.size // 40)
-    c = np.cumsum(np.r_[0.0, op])
-    ops = np.r_[np.full(k // 2, np.nan), (c[k:] - c[:-k]) / k, np.full(k - 1 - k // 2, np.nan)]  # centred, NaN ends
-    held = np.r_[False, np.diff(stem) == 0, False]
-    edges = np.flatnonzero(np.diff(held.astype(np.int8)))
-    net = path = 0.0
-    for a, b in zip(edges[::2], edges[1::2]):  # stem[a-1 .. b-1] constant
-        seg = ops[max(a - 1, 0):b]
-        seg = seg[np.isfinite(seg)]
-        if seg.size > k:
-            net += abs(seg[-1] - seg[0])
-            path += np.abs(np.diff(seg)).sum()
-    return net / path if path > 0 else 0.0
+def _holds(stem: np.ndarray) -> list[tuple[int, int]]:
+    """``(a, b)``: the fitted stem is constant over ``stem[a:b]`` (at least two samples)."""
+    held = np.r_[False, np.diff(stem) == 0, False]  # held[j]: stem[j] == stem[j - 1]
+    edges = np.flatnonzero(np.diff(held.astype(np.int8)))  # held turns on at a + 1, off at b + 1
+    return [(a, b + 1) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def stick_slip_episodes(pv: np.ndarray, op: np.ndarray) -> StickSlip | None:
-    """Stick-slip episodes in one window of PV and OP (see the module docstring).
+def _setpoint_moves(sp: np.ndarray, k: int) -> np.ndarray:
+    """Indices where the set point changes, as breaks of the PI ramps: changes less than ``k``
+    samples apart form one move (an operator's clicks); a move that goes on for more than ``k``
+    samples (a cascade's wandering remote set point) is no step, and gives no breaks."""
+    c = np.flatnonzero(np.diff(sp) != 0) + 1
+    if c.size == 0:
+        return c
+    group = np.r_[0, np.cumsum(np.diff(c) >= k)]  # consecutive changes < k apart: one move
+    first, last = np.full(group[-1] + 1, c[-1]), np.zeros(group[-1] + 1, dtype=int)
+    np.minimum.at(first, group, c)
+    np.maximum.at(last, group, c)
+    return c[(last - first)[group] <= k]
+
+
+def _ramp_share(op: np.ndarray, stem: np.ndarray, sp: np.ndarray | None = None) -> float:
+    """Share of the OP's variance during the fitted stem's holds that PI ramps explain.
+
+    While the stem is held the PV is at rest (noise aside), so the control error is constant
+    between set-point changes, and a PI controller's output ``kc e + ki ∫e`` is a straight
+    line in time, with a kick and a new slope at each set-point change: the OP ramps while the
+    PV sits still (Yamashita 2006).  A load that the valve follows and the loop compensates
+    moves the error with it, and the OP curves with the load.  So fit, in every hold longer
+    than ``k = n/40`` samples, one straight line to the OP between consecutive set-point
+    changes (:func:`_setpoint_moves`: the clicks of one move, each a break; a set point that
+    keeps moving for more than ``k`` samples, none) and return ``1 - SS_res / SS_tot`` pooled
+    over the holds (``SS_tot`` about each hold's mean).  A ramp reversed by a set-point step is
+    a stuck valve's, a reversal with the set point unchanged is not.  0 when no hold is long
+    enough."""
+    n = op.size
+    k = max(3, n // 40)
+    brk = _setpoint_moves(sp, k) if sp is not None else np.zeros(0, dtype=int)
+    ss_res = ss_tot = 0.0
+    for a, b in _holds(stem):
+        if b - a <= k:
+            continue
+        y = op[a:b]
+        ss_tot += float(np.sum((y - y.mean()) ** 2))
+        cuts = np.r_[a, brk[(brk > a) & (brk < b)], b]
+        for c0, c1 in zip(cuts[:-1], cuts[1:]):
+            y = op[c0:c1]
+            if y.size < 3:
+                continue  # one or two samples: a line through them leaves nothing
+            t = np.arange(y.size) - (y.size - 1) / 2.0
+            yc = y - y.mean()
+            ss_res += float(yc @ yc - (t @ yc) ** 2 / (t @ t))
+    return 1.0 - ss_res / ss_tot if ss_tot > 0 else 0.0
+
+
+def stick_slip_episodes(pv: np.ndarray, op: np.ndarray, sp: np.ndarray | None = None) -> StickSlip | None:
+    """Stick-slip episodes in one window of PV and OP, and the set point if known (see the
+    module docstring; without it, only a single ramp per hold counts as the PI's).
 
     A window longer than :data:`MAX_SAMPLES` is first averaged over blocks of ``q`` samples
     (the smallest ``q`` that brings it within): the test's cost grows with the window squared
@@ -83,18 +121,19 @@ def stick_slip_episodes(pv: np.ndarray, op: np.ndarray) -> StickSlip | None:
     """
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
+    sp = None if sp is None else np.asarray(sp, dtype=np.float64)
     q = -(-pv.size // MAX_SAMPLES)
     if q > 1:
         m = pv.size // q * q
-        pv, op = (v[pv.size - m:].reshape(-1, q).mean(axis=1) for v in (pv, op))
+        pv, op, sp = (None if v is None else v[pv.size - m:].reshape(-1, q).mean(axis=1) for v in (pv, op, sp))
     t = stiction_test(pv, op)
     if t is None:
         return None
     if not t.sticking:
         return StickSlip(0, 0.0, t.reason)
-    mono = _monotonic_share(op, t.stem)
-    if mono < MIN_MONOTONIC:
-        return StickSlip(0, 0.0, f"{t.reason}, but the OP goes back and forth while the stem is held "
-                         f"({mono:.0%} of its travel is net: a disturbance compensated, not a stuck valve)")
+    ramps = _ramp_share(op, t.stem, sp)
+    if ramps < MIN_RAMP_SHARE:
+        return StickSlip(0, 0.0, f"{t.reason}, but the OP is no PI ramp while the stem is held (ramps explain "
+                         f"{ramps:.0%} of its variance: a disturbance compensated, not a stuck valve)")
     episodes = max(1, t.slips)
     return StickSlip(episodes, t.stuck_fraction, f"{t.reason}; {episodes} slip(s) of the fitted stem")

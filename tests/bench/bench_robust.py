@@ -89,9 +89,9 @@ def test_stick_slip_cost_per_non_oscillating_window():
     rng = np.random.default_rng(5)
     wins = [w for c in STICK_CASES for i in range(8) if (w := stick_case(c, rng, 500 + i)) is not None]
     test_cpu, diag_cpu = [], []
-    for pv, op, sp in wins:
+    for pv, op, sp, _ in wins:
         c0 = time.process_time()
-        stick_slip_episodes(pv, op)
+        stick_slip_episodes(pv, op, sp)
         test_cpu.append(time.process_time() - c0)
         c0 = time.process_time()
         diagnose_window(pv, fs=1.0, op=op, sp=sp)
