@@ -30,7 +30,9 @@ missing effect explains it, and how much does adding it shrink the gap.
    **Two-fold cross-fit** (``cross_fit``, default on): a candidate that passes the other three
    tests on the held-out blocks is fitted a second time on the held-out blocks (every choice —
    start, refinement, swap — made there), and so is the current model; this second fold is
-   scored on the training blocks.  All four tests are then taken over both folds pooled: every
+   scored on the training blocks.  (As in the first fold, the starts come from the current
+   model and from force balances over the whole record; the current model's second fit starts
+   from its training fit, which if anything favours it on the training blocks: conservative.)  All four tests are then taken over both folds pooled: every
    block carries an improvement, each scored by fits that never saw it.  An effect that acts at
    a few reversals or steps gets twice the blocks to show in (the first fold alone left ~12
    non-zero block differences out of 60 on an ISA-step record with a deadband).
