@@ -114,3 +114,24 @@ def test_lag_named_first_is_swapped_for_the_hidden_dead_time_beside_a_deadband()
     assert db.params["theta_s"] == pytest.approx(0.03, rel=0.2)
     assert db.params["deadband_m"] == pytest.approx(0.5e-3, rel=0.2)
     assert db.heldout_rmse < 1.1 * r.noise_floor
+    # with the two-fold cross-fit both planted effects are named (one fold alone: p 0.003 > 0.0025)
+    assert r.effects == ["dead_time", "deadband"] and db.cross_fitted
+
+
+def test_cross_fit_scores_every_block_once_by_the_fit_of_the_other_half():
+    from models.reconcile import _fold_mask, _pool, _score, prepare
+
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {}, seed=4)
+    r = prepare(ValveData(rec.t, rec.p, rec.x, "short"), block_s=0.45)
+    train, test = _fold_mask(r, "train"), _fold_mask(r, "test")
+    assert not np.any(train & test) and np.all(train | test)
+    assert all(np.unique(train[r.block == b]).size == 1 for b in np.unique(r.block))  # whole blocks
+    n_blocks = int(r.block.max()) + 1
+    assert abs(int(np.unique(r.block[train]).size) - n_blocks / 2) <= 1  # half of them
+    # residual 1 on the training blocks, 2 on the held-out ones: each fold sees only its own
+    e = np.where(train, 1.0, 2.0)
+    a, b = _score([e], [r], "test"), _score([e], [r], "train")
+    assert a.mse_h == 4.0 and b.mse_h == 1.0
+    pooled = _pool(a, b)
+    assert pooled.block_sse.size == n_blocks and pooled.n_h == r.x.size
+    assert pooled.mse_h == pytest.approx((4.0 * test.sum() + train.sum()) / r.x.size)
