@@ -404,7 +404,7 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
-                      k_scale: float = 1.0) -> dict[str, float]:
+                      k_scale: float = 1.0, at: str = "tail") -> dict[str, float]:
     """Start values from force balances where slides end and from the slides themselves.
 
     Where a slide ends, friction holds the stem at the edge of its stick band:
@@ -417,8 +417,15 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     inertia).
     ``tau``, ``theta``: the force is computed from the recorded pressure through that lag and dead
     time (start values of the ``actuator_lag`` / ``dead_time`` candidates); ``k_scale``: start
-    from another spring constant (multi-start of the baseline).
+    from another spring constant (multi-start of the baseline).  ``at``: where in each rest the
+    balance is read — ``"tail"`` (its last third: a slow slide may still creep when it is first
+    called at rest) or ``"head"`` (50–100 ms after the stop: where the pressure keeps moving
+    during a rest, as on ramps, the tail's force is already on its way to the next breakaway,
+    ``F_s`` rather than ``F_c``; on an independent ramp record with a slip jump the tail gave
+    k = 46 kN/m, the head 154 kN/m against a true 152).
     """
+    if at not in ("tail", "head"):
+        raise ModelConfigError(f"at={at!r}: 'tail' or 'head' of each rest")
     stops, slide_rows = [], []
     for r in recs:
         state, _ = motion_state(r.x, r.dt)
@@ -428,7 +435,8 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         for (a0, a1, s0), (b0, b1, s1) in zip(runs, runs[1:]):
             if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt):
                 # the end of the rest: a slow slide may still creep when it is first called at rest
-                tail = slice(b1 - max((b1 - b0) // 3, 1), b1)
+                tail = (slice(b1 - max((b1 - b0) // 3, 1), b1) if at == "tail"
+                        else slice(b0 + int(0.05 / r.dt), b0 + int(0.1 / r.dt)))
                 xe = float(np.median(r.x[tail]))
                 stops.append((xe, float(np.median(F[tail])), float(s0)))
                 sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
@@ -475,14 +483,14 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     if effect in ("slip_jump", "stribeck"):
         # slides end where the force has fallen to F_c: the force balances at the stops give F_c
         # (and k, x̄, F_v) directly, whereas the baseline compromised between F_c and F_s
-        try:
-            fresh = _initial_baseline(recs, cfg, tau=vals.get("tau", 0.0), theta=vals.get("theta", 0.0))
-        except IdentificationError:
-            fresh = None
+        fresh = []
+        for at in ("tail", "head"):
+            try:
+                fresh.append(_initial_baseline(recs, cfg, tau=vals.get("tau", 0.0), theta=vals.get("theta", 0.0), at=at))
+            except IdentificationError:
+                pass
         out = []
-        for v0, extra in ((vals, {}), (fresh, fresh)):
-            if v0 is None:
-                continue
+        for v0, extra in [(vals, {})] + [(f, f) for f in fresh]:
             fc0 = v0["fc"]
             if effect == "slip_jump":
                 out += [{**extra, "dfs": f * fc0} for f in (0.15, 0.4, 1.0)]
