@@ -135,3 +135,24 @@ def test_cross_fit_scores_every_block_once_by_the_fit_of_the_other_half():
     pooled = _pool(a, b)
     assert pooled.block_sse.size == n_blocks and pooled.n_h == r.x.size
     assert pooled.mse_h == pytest.approx((4.0 * test.sum() + train.sum()) / r.x.size)
+
+
+def test_force_balance_at_the_head_of_each_rest_recovers_spring_and_friction_on_ramps():
+    """On pressure ramps the stem rests while the pressure keeps moving towards the next
+    breakaway, so only the balance read just after each stop (``at="head"``) sees ``F_c``; the
+    planted truth (the ``low`` valve with a hidden slip jump) is the reference."""
+    from models.karnopp import pct_to_pa
+    from models.reconcile import ReconcileConfig, _initial_baseline, prepare
+    from models.valve_tests import Excitation
+
+    params = PRESETS["low"]
+    rng = np.random.default_rng(3)
+    dt = 1e-3
+    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 30))]
+    t = dt * np.arange(int(60.0 / dt))
+    exc = Excitation("ramps", t, pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size))), dt)
+    rec = hidden_record(params, exc, {"slip_jump": (1.6,)}, noise_x=5e-6, noise_p=50.0, seed=3)
+    recs = [prepare(ValveData(rec.t, rec.p, rec.x, "ramps"), 0.5, params.sa)]
+    head = _initial_baseline(recs, ReconcileConfig(sa=params.sa), at="head")
+    assert head["k"] == pytest.approx(params.k, rel=0.15)
+    assert head["fc"] == pytest.approx(params.fc, rel=0.25)
