@@ -180,6 +180,19 @@ def robust_amplitude(y: np.ndarray) -> float:
     return float(part[k95] - part[k5]) / 2.0
 
 
+def _full_periods(c: np.ndarray) -> np.ndarray:
+    """Full-period estimates ``T_k = z_{k+2} - z_k`` from the zero crossings ``z`` of ``c``."""
+    z = zero_crossings(c)
+    return z[2:] - z[:-2]
+
+
+def _mean_and_regularity(periods: np.ndarray) -> tuple[float, float]:
+    """Mean period and Thornhill's regularity ``r = mean(T) / (3 std(T))`` (inf for equal periods)."""
+    tp = float(periods.mean())
+    sd = float(periods.std(ddof=1))
+    return tp, (np.inf if sd == 0 else tp / (3.0 * sd))
+
+
 def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[float, float, int, float]:
     """Thornhill et al. (2003) regularity of the zero crossings of an ACF ``r``.
 
@@ -190,15 +203,12 @@ def regularity(r: np.ndarray, *, n_total: int, min_periods: int = 5) -> tuple[fl
     (each the largest taper-corrected value within a quarter period of ``k T``).
     NaNs when fewer than ``min_periods`` full periods are available.
     """
-    z = zero_crossings(r)
-    periods = z[2:] - z[:-2]
+    periods = _full_periods(r)
     if periods.size < min_periods:
         return np.nan, np.nan, int(periods.size), np.nan
     # at most ten periods: later lags of a finite record carry little information
     periods = periods[: 2 * 10]
-    tp = float(periods.mean())
-    sd = float(periods.std(ddof=1))
-    reg = np.inf if sd == 0 else tp / (3.0 * sd)
+    tp, reg = _mean_and_regularity(periods)
     peaks = []
     top = min(int(np.ceil(3 * tp + tp / 4)) + 1, r.size)
     corrected = r[:top] / (1.0 - np.arange(top) / n_total)  # the biased estimator's taper undone
@@ -357,13 +367,10 @@ def _steady_envelope(yy: np.ndarray, band_spectrum: np.ndarray, null_power: np.n
     """The second detector (module docstring) on one band-passed candidate ``yy``: its own zero
     crossings regular (Thornhill's ``r``) and its envelope steadier than Gaussian noise's
     (:func:`_envelope_z` standard errors).  ``(period, r, n_periods, q, z)`` when it passes, else ``None``."""
-    z = zero_crossings(yy)
-    periods = z[2:] - z[:-2]
+    periods = _full_periods(yy)
     if periods.size < max(config.min_periods, 2):
         return None
-    tp = float(periods.mean())
-    sd = float(periods.std(ddof=1))
-    reg = np.inf if sd == 0 else tp / (3.0 * sd)
+    tp, reg = _mean_and_regularity(periods)
     if not (reg > config.min_regularity and config.min_period_samples <= tp <= max_period):
         return None
     q, zq = envelope_test(band_spectrum, null_power, yy.size, trim=int(np.ceil(tp)))

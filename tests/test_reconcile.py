@@ -10,10 +10,21 @@ import numpy as np
 import pytest
 
 from models.identification import ValveData
-from models.karnopp import PRESETS
-from models.reconcile import REGIMES, reconcile, smooth_pressure
-from models.valve_effects import hidden_record
-from models.valve_tests import isa_steps, sine
+from models.karnopp import PRESETS, pct_to_pa
+from models.reconcile import (
+    REGIMES,
+    ReconcileConfig,
+    _alternatives,
+    _fold_mask,
+    _initial_baseline,
+    _pool,
+    _score,
+    prepare,
+    reconcile,
+    smooth_pressure,
+)
+from models.valve_effects import actuator_pressure, hidden_record
+from models.valve_tests import Excitation, isa_steps, sine
 from service.cli import main
 
 SHORT = isa_steps(steps_pct=(1.0, 5.0, 20.0, 50.0), hold=2.0)  # 18 s of ISA-75.25 steps
@@ -75,8 +86,6 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
 
 
 def test_dead_time_shift_matches_linear_interpolation():
-    from models.valve_effects import actuator_pressure
-
     p = np.cumsum(np.random.default_rng(3).standard_normal(3000))
     for theta in (0.0004, 0.001, 0.0123, 0.5, 3.5):  # fractions of a sample, whole samples, > record
         ref = np.interp(np.arange(p.size) - theta / 1e-3, np.arange(p.size), p)  # p[0] before the record
@@ -93,8 +102,6 @@ def test_hidden_slip_jump_is_named_and_the_gap_shrinks():
 
 
 def test_alternatives_are_the_effects_of_the_same_regimes():
-    from models.reconcile import _alternatives
-
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "stribeck"}
     assert _alternatives("deadband", [], "dead_time") == ["slip_jump"]
     assert _alternatives("slip_jump", [], "deadband") == []  # its only alternative is the effect added
@@ -119,8 +126,6 @@ def test_lag_named_first_is_swapped_for_the_hidden_dead_time_beside_a_deadband()
 
 
 def test_cross_fit_scores_every_block_once_by_the_fit_of_the_other_half():
-    from models.reconcile import _fold_mask, _pool, _score, prepare
-
     rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {}, seed=4)
     r = prepare(ValveData(rec.t, rec.p, rec.x, "short"), block_s=0.45)
     train, test = _fold_mask(r, "train"), _fold_mask(r, "test")
@@ -141,10 +146,6 @@ def test_force_balance_at_the_head_of_each_rest_recovers_spring_and_friction_on_
     """On pressure ramps the stem rests while the pressure keeps moving towards the next
     breakaway, so only the balance read just after each stop (``at="head"``) sees ``F_c``; the
     planted truth (the ``low`` valve with a hidden slip jump) is the reference."""
-    from models.karnopp import pct_to_pa
-    from models.reconcile import ReconcileConfig, _initial_baseline, prepare
-    from models.valve_tests import Excitation
-
     params = PRESETS["low"]
     rng = np.random.default_rng(3)
     dt = 1e-3

@@ -267,6 +267,15 @@ def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
     return lfilter([1.0], [1.0, -phi], rng.standard_normal(n + 200))[200:]
 
 
+def _resonance(rng: np.random.Generator, n: int, zeta: float, burn: int = 0) -> np.ndarray:
+    """White noise through a second-order resonance of damping ``zeta`` and period 8 to n/8
+    samples (log-uniform); the first ``burn`` samples of the output are dropped."""
+    from scipy.signal import lfilter
+    w = 2 * np.pi / float(np.exp(rng.uniform(np.log(8), np.log(n / 8))))
+    a1, a2 = -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(max(1 - zeta**2, 0.0))), np.exp(-2 * zeta * w)
+    return lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n + burn))[burn:]
+
+
 def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
     """One planted window for :data:`GATE_CASES` (record length 200-4096 samples).
 
@@ -276,7 +285,6 @@ def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
     Non-oscillating: AR(1) with phi 0.9-0.999 plus a random walk and white noise (a drifting
     process variable), or a second-order resonance driven by white noise with damping 0.4-1.
     """
-    from scipy.signal import lfilter
     n = int(np.exp(rng.uniform(np.log(200), np.log(4096))))
     if case in _SESSION4_CASES:
         return _SESSION4_CASES[case](rng, n)
@@ -293,35 +301,26 @@ def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
             jitter = rng.uniform(0.05, 0.2)
         n_cyc = int(n / period) + 3
         lengths = period * np.clip(1.0 + jitter * rng.standard_normal(n_cyc), 0.5, 1.5)
-        knots = np.r_[0.0, np.cumsum(lengths)]
-        phase = np.interp(np.arange(n) + rng.uniform(0, period), knots, 2 * np.pi * np.arange(knots.size))
-        shape = rng.choice(["sine", "triangle", "square"])
-        if shape == "sine":
-            s = np.sin(phase)
-        elif shape == "triangle":
-            s = 2 / np.pi * np.arcsin(np.sin(phase))
-        else:
-            s = np.sign(np.sin(phase))
+        s = _cycles(rng, n, lengths, np.ones(n_cyc), start=period)
         noise = rng.uniform(0.1, 0.5) * _ar1(rng, n, rng.uniform(0.0, 0.95))
         noise = noise / max(np.std(noise), 1e-12) * rng.uniform(0.1, 0.5)
         drift = np.cumsum(rng.standard_normal(n)) * rng.uniform(0, 0.02)
         return s + noise + drift
     if case.startswith("damped"):
-        zeta = rng.uniform(0.4, 1.0)
-        w = 2 * np.pi / float(np.exp(rng.uniform(np.log(8), np.log(n / 8))))
-        a1, a2 = -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(max(1 - zeta**2, 0.0))), np.exp(-2 * zeta * w)
-        return lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n))
+        return _resonance(rng, n, rng.uniform(0.4, 1.0))
     x = _ar1(rng, n, rng.uniform(0.9, 0.999))
     if case.startswith("random walk"):
         x = x + np.cumsum(rng.standard_normal(n)) * rng.uniform(0.05, 0.5)
     return x + rng.uniform(0, 0.5) * np.std(x) * rng.standard_normal(n)
 
 
-def _cycles(rng: np.random.Generator, n: int, lengths: np.ndarray, amps: np.ndarray) -> np.ndarray:
+def _cycles(rng: np.random.Generator, n: int, lengths: np.ndarray, amps: np.ndarray,
+            start: float | None = None) -> np.ndarray:
     """A sine, triangle or square wave whose cycle ``k`` lasts ``lengths[k]`` samples and has
-    amplitude ``amps[k]`` (amplitude interpolated between cycle centres), random start phase."""
+    amplitude ``amps[k]`` (amplitude interpolated between cycle centres), random start phase
+    (the record starts up to ``start`` samples, default ``lengths[0]``, into the first cycle)."""
     knots = np.r_[0.0, np.cumsum(lengths)]
-    t = np.arange(n) + rng.uniform(0, lengths[0])
+    t = np.arange(n) + rng.uniform(0, lengths[0] if start is None else start)
     phase = np.interp(t, knots, 2 * np.pi * np.arange(knots.size))
     amp = np.interp(t, knots[:-1] + lengths / 2, amps)
     shape = rng.choice(["sine", "triangle", "square"])
@@ -380,11 +379,7 @@ def _very_short(rng: np.random.Generator, n: int) -> np.ndarray:
 def _bump(rng: np.random.Generator, n: int) -> np.ndarray:
     """Noise through a second-order resonance (zeta 0.2-0.4, period 8 to n/8 samples) on a
     drifting AR(1) (phi 0.9-0.999) with a random walk: a spectral bump, not an oscillation."""
-    from scipy.signal import lfilter
-    zeta = rng.uniform(0.2, 0.4)
-    w = 2 * np.pi / float(np.exp(rng.uniform(np.log(8), np.log(n / 8))))
-    a1, a2 = -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(1 - zeta**2)), np.exp(-2 * zeta * w)
-    res = lfilter([1.0], [1.0, a1, a2], rng.standard_normal(n + 500))[500:]
+    res = _resonance(rng, n, rng.uniform(0.2, 0.4), burn=500)
     drift = _ar1(rng, n, rng.uniform(0.9, 0.999)) + np.cumsum(rng.standard_normal(n)) * rng.uniform(0.0, 0.2)
     return res / np.std(res) + rng.uniform(0.3, 1.0) * drift / max(np.std(drift), 1e-12)
 
