@@ -259,6 +259,12 @@ GATE_CASES = {  # case: truth (oscillating?)
     "intermittent (on 60-90 % of the record)": True,
     "very short (2-3 periods)": True,
     "spectral bump (zeta 0.2-0.4) in drifting noise": False,
+    # session 5: level shifts, bursts, few noisy cycles (the ISDB misses of session 4), truth from the generator
+    "on level shifts and excursions": True,
+    "burst on 30-60 % of the record": True,
+    "few noisy cycles (6-10 periods)": True,
+    "level shifts + red noise": False,
+    "resonance bursts + level shifts": False,
 }
 
 
@@ -286,8 +292,9 @@ def gate_case(case: str, rng: np.random.Generator) -> np.ndarray:
     process variable), or a second-order resonance driven by white noise with damping 0.4-1.
     """
     n = int(np.exp(rng.uniform(np.log(200), np.log(4096))))
-    if case in _SESSION4_CASES:
-        return _SESSION4_CASES[case](rng, n)
+    for table in (_SESSION4_CASES, _SESSION5_CASES):
+        if case in table:
+            return table[case](rng, n)
     if GATE_CASES[case]:
         jitter = 0.0
         if case.startswith("short"):
@@ -389,6 +396,90 @@ _SESSION4_CASES = {
     "intermittent (on 60-90 % of the record)": _intermittent,
     "very short (2-3 periods)": _very_short,
     "spectral bump (zeta 0.2-0.4) in drifting noise": _bump,
+}
+
+
+def _shifts(rng: np.random.Generator, n: int, k: int, size: float, unit: float) -> np.ndarray:
+    """``k`` level shifts of ``unit`` x U(1, ``size``) (random sign) at random times; about half
+    of them excursions that return after n/40 to n/8 samples."""
+    x = np.zeros(n)
+    for _ in range(k):
+        at, h = int(rng.integers(0, n)), rng.choice([-1, 1]) * rng.uniform(1, size) * unit
+        end = n if rng.uniform() < 0.5 else min(n, at + int(rng.uniform(n / 40, n / 8)))
+        x[at:end] += h
+    return x
+
+
+def _wandering_lengths(rng: np.random.Generator, m: int, period: float) -> np.ndarray:
+    """``m`` cycle lengths around ``period``: log-period AR(1) over cycles (phi 0.7, sd 5-15 %)
+    plus 3-8 % independent jitter per cycle."""
+    sd, e = rng.uniform(0.05, 0.15), np.zeros(m)
+    for k in range(1, m):
+        e[k] = 0.7 * e[k - 1] + np.sqrt(1 - 0.49) * sd * rng.standard_normal()
+    return period * np.exp(e + rng.uniform(0.03, 0.08) * rng.standard_normal(m))
+
+
+def _on_level_shifts(rng: np.random.Generator, n: int) -> np.ndarray:
+    """An oscillation with a wandering period (:func:`_wandering_lengths`, mean period 8 to
+    n/10, n 500-4096) riding on 2-6 level shifts or excursions of 1-4 amplitudes, in coloured
+    noise (sd 0.1-0.5)."""
+    n = int(np.exp(rng.uniform(np.log(500), np.log(4096))))
+    period = float(np.exp(rng.uniform(np.log(8), np.log(n / 10))))
+    m = int(2 * n / period) + 3
+    x = _cycles(rng, n, _wandering_lengths(rng, m, period), np.ones(m))
+    return x + _shifts(rng, n, int(rng.integers(2, 7)), 4.0, 1.0) + _coloured(rng, n, rng.uniform(0.1, 0.5))
+
+
+def _burst(rng: np.random.Generator, n: int) -> np.ndarray:
+    """An oscillation with a wandering period (:func:`_wandering_lengths`) in one stretch
+    covering 30-60 % of the record (at least 8 cycles in it, n 500-4096), coloured noise
+    (sd 0.1-0.5) throughout."""
+    n = int(np.exp(rng.uniform(np.log(500), np.log(4096))))
+    on = int(rng.uniform(0.3, 0.6) * n)
+    period = float(np.exp(rng.uniform(np.log(5), np.log(on / 8))))
+    m = int(2 * n / period) + 3
+    x = _cycles(rng, n, _wandering_lengths(rng, m, period), np.ones(m))
+    start = int(rng.integers(0, n - on + 1))
+    x[:start] = 0.0
+    x[start + on:] = 0.0
+    return x + _coloured(rng, n, rng.uniform(0.1, 0.5))
+
+
+def _few_noisy(rng: np.random.Generator, n: int) -> np.ndarray:
+    """6-10 periods (:func:`_wandering_lengths`) in 200-4096 samples, coloured noise sd 0.3-0.6."""
+    period = n / rng.uniform(6.0, 10.0)
+    m = int(2 * n / period) + 3
+    x = _cycles(rng, n, _wandering_lengths(rng, m, period), np.ones(m))
+    return x + _coloured(rng, n, rng.uniform(0.3, 0.6))
+
+
+def _shifted_red_noise(rng: np.random.Generator, n: int) -> np.ndarray:
+    """AR(1) noise (phi 0.5-0.99, sd 1) with 2-8 level shifts or excursions of 1-4 sd, plus white
+    noise: a drifting, stepping process variable without an oscillation."""
+    x = _ar1(rng, n, rng.uniform(0.5, 0.99))
+    x = x / max(np.std(x), 1e-12) + _shifts(rng, n, int(rng.integers(2, 9)), 4.0, 1.0)
+    return x + rng.uniform(0, 0.5) * rng.standard_normal(n)
+
+
+def _resonance_bursts(rng: np.random.Generator, n: int) -> np.ndarray:
+    """A damped resonance (zeta 0.2-0.4) whose standard deviation switches between 0.2 and 1 in
+    2-4 stretches, on 1-4 level shifts of 1-3 sd and drifting AR(1) noise: non-stationary noise."""
+    res = _resonance(rng, n, rng.uniform(0.2, 0.4), burn=500)
+    edges = np.sort(rng.integers(0, n, int(rng.integers(1, 4))))
+    scale = np.ones(n)
+    for k, (a, b) in enumerate(zip(np.r_[0, edges], np.r_[edges, n])):
+        scale[a:b] = 1.0 if k % 2 == 0 else 0.2
+    x = res / max(np.std(res), 1e-12) * scale
+    drift = _ar1(rng, n, rng.uniform(0.9, 0.99))
+    return x + _shifts(rng, n, int(rng.integers(1, 5)), 3.0, 1.0) + 0.3 * drift / max(np.std(drift), 1e-12)
+
+
+_SESSION5_CASES = {
+    "on level shifts and excursions": _on_level_shifts,
+    "burst on 30-60 % of the record": _burst,
+    "few noisy cycles (6-10 periods)": _few_noisy,
+    "level shifts + red noise": _shifted_red_noise,
+    "resonance bursts + level shifts": _resonance_bursts,
 }
 
 
