@@ -101,3 +101,49 @@ def test_steady_envelope_rejects_a_resonance_bump(zeta):
         q, z = envelope_test(fft.rfft(x) * gain, gain**2, N, trim=40)
         assert z < 3.0
         assert "steady envelope" not in oscillation_gate(x, fs=1.0).reason
+
+
+def _part_oscillating(seed: int) -> np.ndarray:
+    """Samples 1200-1999 a triangle wave of period 25 (5 % jitter per cycle, amplitude 1);
+    samples 0-1199 red noise (AR(1), phi 0.95, sd 1) with an excursion of +3 over samples
+    300-599; white noise (sd 0.3) throughout."""
+    rng = np.random.default_rng(seed)
+    x = signal.lfilter([1.0], [1.0, -0.95], rng.standard_normal(N)) * np.sqrt(1 - 0.95**2)
+    knots = np.r_[0.0, np.cumsum(25 * (1 + 0.05 * rng.standard_normal(200)))]
+    x[1200:] = 2 / np.pi * np.arcsin(np.sin(np.interp(np.arange(800), knots, 2 * np.pi * np.arange(knots.size))))
+    x[300:600] += 3.0
+    return x + 0.3 * rng.standard_normal(N)
+
+
+def test_half_window_stage_finds_an_oscillation_on_part_of_the_window():
+    """An oscillation on the last 40 % of the window, red noise with an excursion before: every
+    draw oscillates (planted); the whole window fails in some draws (the quiet, stepping part
+    dilutes it), and there the last half passes, at period 25."""
+    from pipeline.gate import GateConfig
+    whole_only = GateConfig(half_windows=False)
+    results = [(oscillation_gate(x, fs=1.0), oscillation_gate(x, fs=1.0, config=whole_only))
+               for x in map(_part_oscillating, range(8))]
+    assert sum(not w.oscillating for _, w in results) >= 2  # the case exercises the stage
+    for g, w in results:
+        assert g.oscillating
+        if not w.oscillating:
+            assert "in the last half of the window" in g.reason
+        assert g.period_s == pytest.approx(25.0, rel=0.1)
+
+
+def test_half_window_stage_adds_no_pass_on_nonstationary_gaussian_noise():
+    """Resonant noise (zeta 0.2-0.4, period 20-80) switching between two levels of power, with
+    level shifts, on red noise: Gaussian noise, not an oscillation; the half windows add no pass."""
+    from pipeline.gate import GateConfig
+    whole_only = GateConfig(half_windows=False)
+    added = 0
+    for s in range(40):
+        rng = np.random.default_rng(100 + s)
+        zeta, w = rng.uniform(0.2, 0.4), 2 * np.pi / rng.uniform(20, 80)
+        a = [1.0, -2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(1 - zeta**2)), np.exp(-2 * zeta * w)]
+        x = signal.lfilter([1.0], a, rng.standard_normal(N))
+        x = x / np.std(x) * np.where(np.arange(N) < rng.integers(500, 1500), 1.0, 0.3)
+        x[rng.integers(0, N):] += rng.uniform(1, 3)
+        x += 0.5 * signal.lfilter([1.0], [1.0, -0.98], rng.standard_normal(N)) * np.sqrt(1 - 0.98**2)
+        added += oscillation_gate(x, fs=1.0).oscillating and not oscillation_gate(x, fs=1.0, config=whole_only).oscillating
+    assert added == 0
