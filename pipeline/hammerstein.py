@@ -138,14 +138,15 @@ def _cumsum0(f: np.ndarray) -> np.ndarray:
     return c
 
 
-def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int,
+def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int, min_dead_time: int = 0,
                     poles: np.ndarray | None = None) -> HammersteinFit:
     """Fit ``pv(k) = K G_a(q) x(k - d) + c + c' a^k`` for every stem ``x`` (rows of
     ``stems``), best over the pole grid and ``d = 0 … max_dead_time`` (separable least squares,
     see the module docstring).  ``c' a^k`` is the free response of the lag from its unknown
     state at the window's start (for a pole near 1 it is the drift of an integrating PV); the
     input enters as ``x - x(0)``.  All fits use the same samples ``max_dead_time … n-1``.
-    ``poles``: the poles searched (default :func:`_time_constants`)."""
+    ``min_dead_time``: the shortest dead time searched; ``poles``: the poles searched (default
+    :func:`_time_constants`)."""
     pv = np.asarray(pv, dtype=np.float64)
     stems = np.atleast_2d(np.asarray(stems, dtype=np.float64))
     m, n = stems.shape
@@ -189,6 +190,7 @@ def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int,
         with np.errstate(divide="ignore", invalid="ignore"):
             ok = sff > 1e-9 * np.maximum(c2[:, lo + N] - c2[:, lo], 1e-300)
             sse = np.where(ok, syy - sfy * sfy / np.where(ok, sff, 1.0), syy)
+        sse[:, :min_dead_time] = np.inf
         j = np.argmin(sse, axis=1)
         v = sse[rows, j]
         better = v < best
@@ -222,7 +224,8 @@ class StictionTest:
     units); ``sse_ratio`` Hammerstein / linear error; ``statistic`` the autocorrelation-corrected
     likelihood ratio and ``penalty`` what it had to exceed; ``slips`` the fitted stem's moves
     after a stuck phase, ``stuck_fraction`` of the window the fitted stem held while the OP
-    moved; ``stem`` the fitted stem (OP units).
+    moved; ``pole`` and ``dead_time`` (samples) the fitted lag of the stiction model; ``stem``
+    the fitted stem (OP units).
     """
 
     sticking: bool
@@ -234,6 +237,8 @@ class StictionTest:
     slips: int
     stuck_fraction: float
     reason: str
+    pole: float = 0.0
+    dead_time: int = 0
     stem: np.ndarray = field(default=None, repr=False, compare=False)
 
 
@@ -243,7 +248,8 @@ def _noise_std(x: np.ndarray) -> float:
 
 
 def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: float = 0.1,
-                  max_dead_time: int | None = None, highpass: int | None = None) -> StictionTest | None:
+                  max_dead_time: int | None = None, min_dead_time: int = 1,
+                  highpass: int | None = None) -> StictionTest | None:
     """Is the PV explained better by a sticking valve than by a linear one?  (Module docstring.)
 
     Parameters
@@ -292,7 +298,8 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
             stems_w = (stems - uniform_filter1d(stems, L, axis=1, mode="nearest"))[:, h:n - h]
         else:
             stems_w = stems
-        return FS, FD, F0, stems, stems_w, hammerstein_fit(pv_w, stems_w, max_dead_time=D, poles=poles)
+        return FS, FD, F0, stems, stems_w, hammerstein_fit(pv_w, stems_w, max_dead_time=D, min_dead_time=min_dead_time,
+                                                                 poles=poles)
 
     pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h] if L > 1 else pv
     FS, FD, F0, stems, stems_w, fit = fit_grid(FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
@@ -333,4 +340,4 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     else:
         reason = f"the PV follows the OP (a stiction model leaves {ratio:.0%} of a linear model's error)"
     return StictionTest(bool(sticking), float(FS[i]), float(FD[i]), ratio, stat, penalty, slips, frac, reason,
-                        stems[i])
+                        float(fit.pole[i]), int(fit.dead_time[i]), stems[i])
