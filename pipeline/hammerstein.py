@@ -249,7 +249,7 @@ def _noise_std(x: np.ndarray) -> float:
 
 def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: float = 0.1,
                   max_dead_time: int | None = None, min_dead_time: int = 1,
-                  highpass: int | None = None) -> StictionTest | None:
+                  highpass: int | None = None, refine_rounds: int = 1) -> StictionTest | None:
     """Is the PV explained better by a sticking valve than by a linear one?  (Module docstring.)
 
     Parameters
@@ -260,8 +260,13 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
         friction that holds the stem for a small part of the control action is no fault
         worth reporting (and a small model mismatch reads as one).
     max_dead_time : longest dead time searched, samples (default a tenth of the window).
+    min_dead_time : shortest dead time searched, samples: 1, because a PV sample cannot answer
+        the OP computed from it (at lag 0 the OP carries the controller's reaction to the PV's
+        measurement noise, which a linear model of PV from OP would fit and a held stem cannot).
     highpass : length in samples of the moving average removed from PV and stems before the
         fit (default an eighth of the window; 0: none).
+    refine_rounds : narrowed refinement passes after the first fine one (fs x 0.92-1.08,
+        fd/fs +- 0.125, initial force +- 0.15 fs around the best).
 
     Returns
     -------
@@ -309,20 +314,30 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     sse_lin, sse_st = float(fit.sse[0]), float(fit.sse[i])
     if not sse_lin > 0:
         return None
-    # second, finer pass around the best stiction candidate (the slip times hinge on fs and the
+    # finer passes around the best stiction candidate (the slip times hinge on fs and the
     # initial force together: the coarse grid can miss a slip by tens of samples), over the
-    # coarse fit's pole and its two neighbours; same family, same parameters
+    # best fit's pole and its two neighbours; same family, same parameters.  The first spans
+    # fd/fs and the initial force whole, each further one (``refine_rounds``) narrows all three
+    # around the best so far
     poles = _time_constants(n)
-    j = int(np.argmin(np.abs(poles - fit.pole[i])))
-    g = np.array(np.meshgrid(FS[i] * np.array([0.8, 0.9, 1.0, 1.12, 1.25]), [0.0, 0.25, 0.5, 0.75, 1.0],
-                             np.linspace(-0.9, 0.9, 7), indexing="ij")).reshape(3, -1)
-    g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
-    if g.shape[1]:
+    spans = [(np.array([0.8, 0.9, 1.0, 1.12, 1.25]), None, None)] + [
+        (np.array([0.92, 0.96, 1.0, 1.04, 1.08]), np.array([-0.125, 0.0, 0.125]), np.linspace(-0.15, 0.15, 7))
+    ] * refine_rounds
+    for fs_mul, fd_off, f0_off in spans:
+        j = int(np.argmin(np.abs(poles - fit.pole[i])))
+        r_d, r_0 = FD[i] / FS[i], F0[i] / FS[i]
+        fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
+        f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
+        g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
+        g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
+        if not g.shape[1]:
+            break
         fine = fit_grid(g[0], g[0] * g[1], g[0] * g[2], poles=poles[max(j - 1, 0):j + 2])
         k = int(np.argmin(fine[-1].sse))
-        if fine[-1].sse[k] < sse_st:
-            FS, FD, _, stems, stems_w, fit = fine
-            i, sse_st = k, float(fit.sse[k])
+        if not fine[-1].sse[k] < sse_st:
+            break
+        FS, FD, F0, stems, stems_w, fit = fine
+        i, sse_st = k, float(fit.sse[k])
     r = _residual(pv_w, stems_w[i], float(fit.pole[i]), int(fit.dead_time[i]), D)
     r1 = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.99))
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)
