@@ -7,7 +7,9 @@ friction: the PV stays flat where a linear model of the loop predicts movement, 
 up with no OP step.  So fit two models of PV from OP on the window itself and compare them:
 
 * **linear**: ``pv(k) = K G(q) op(k - d) + c``, ``G`` a first-order lag ``(1 - a) / (1 - a q^-1)``
-  (static when ``a = 0``, near-integrating for ``a → 1``), dead time ``d`` samples;
+  (static when ``a = 0``, near-integrating for ``a → 1``), dead time ``d >= 1`` samples (a PV
+  sample cannot answer the OP computed from it; at ``d = 0`` the OP's reaction to the PV's
+  measurement noise would read as a response);
 * **Hammerstein**: the same, fed by the stem ``x = f_{fs,fd}(op)`` of a two-parameter
   stiction model (static and dynamic friction, He et al. 2007; :func:`stiction_stem`).
 
@@ -16,7 +18,7 @@ This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & M
 Ind. Eng. Chem. Res. 44:6719–6728) and Jelali (2008, "Estimation of valve stiction in control
 loops using separable least-squares and global search algorithms", J. Process Control
 18:632–642): the stiction parameters by a global grid search, refined by a finer grid around
-its best point; the linear part by separable least squares (for each pole and dead time the
+its best point and once more by a narrower one; the linear part by separable least squares (for each pole and dead time the
 gain and offset are linear; the
 cross-correlations of every candidate stem with the PV at every dead time come from one
 matrix product per pole).  The linear model is the ``fs = fd = 0`` member of the family.
