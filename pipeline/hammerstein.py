@@ -18,8 +18,8 @@ This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & M
 Ind. Eng. Chem. Res. 44:6719–6728) and Jelali (2008, "Estimation of valve stiction in control
 loops using separable least-squares and global search algorithms", J. Process Control
 18:632–642): the stiction parameters by a global grid search, refined by a finer grid around
-its best point and once more by a narrower one; the linear part by separable least squares (for each pole and dead time the
-gain and offset are linear; the
+its best point and once more by a narrower one; the linear part by separable least squares
+(for each pole and dead time the gain and offset are linear; the
 cross-correlations of every candidate stem with the PV at every dead time come from one
 matrix product per pole).  The linear model is the ``fs = fd = 0`` member of the family.
 
@@ -143,7 +143,7 @@ def _cumsum0(f: np.ndarray) -> np.ndarray:
 def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int, min_dead_time: int = 0,
                     poles: np.ndarray | None = None) -> HammersteinFit:
     """Fit ``pv(k) = K G_a(q) x(k - d) + c + c' a^k`` for every stem ``x`` (rows of
-    ``stems``), best over the pole grid and ``d = 0 … max_dead_time`` (separable least squares,
+    ``stems``), best over the pole grid and ``d = min_dead_time … max_dead_time`` (separable least squares,
     see the module docstring).  ``c' a^k`` is the free response of the lag from its unknown
     state at the window's start (for a pole near 1 it is the drift of an integrating PV); the
     input enters as ``x - x(0)``.  All fits use the same samples ``max_dead_time … n-1``.
@@ -305,8 +305,8 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
             stems_w = (stems - uniform_filter1d(stems, L, axis=1, mode="nearest"))[:, h:n - h]
         else:
             stems_w = stems
-        return FS, FD, F0, stems, stems_w, hammerstein_fit(pv_w, stems_w, max_dead_time=D, min_dead_time=min_dead_time,
-                                                                 poles=poles)
+        fit = hammerstein_fit(pv_w, stems_w, max_dead_time=D, min_dead_time=min_dead_time, poles=poles)
+        return FS, FD, F0, stems, stems_w, fit
 
     pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h] if L > 1 else pv
     FS, FD, F0, stems, stems_w, fit = fit_grid(FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
