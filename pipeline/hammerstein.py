@@ -7,7 +7,9 @@ friction: the PV stays flat where a linear model of the loop predicts movement, 
 up with no OP step.  So fit two models of PV from OP on the window itself and compare them:
 
 * **linear**: ``pv(k) = K G(q) op(k - d) + c``, ``G`` a first-order lag ``(1 - a) / (1 - a q^-1)``
-  (static when ``a = 0``, near-integrating for ``a → 1``), dead time ``d`` samples;
+  (static when ``a = 0``, near-integrating for ``a → 1``), dead time ``d >= 1`` samples (a PV
+  sample cannot answer the OP computed from it; at ``d = 0`` the OP's reaction to the PV's
+  measurement noise would read as a response);
 * **Hammerstein**: the same, fed by the stem ``x = f_{fs,fd}(op)`` of a two-parameter
   stiction model (static and dynamic friction, He et al. 2007; :func:`stiction_stem`).
 
@@ -16,8 +18,8 @@ This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & M
 Ind. Eng. Chem. Res. 44:6719–6728) and Jelali (2008, "Estimation of valve stiction in control
 loops using separable least-squares and global search algorithms", J. Process Control
 18:632–642): the stiction parameters by a global grid search, refined by a finer grid around
-its best point; the linear part by separable least squares (for each pole and dead time the
-gain and offset are linear; the
+its best point and once more by a narrower one; the linear part by separable least squares
+(for each pole and dead time the gain and offset are linear; the
 cross-correlations of every candidate stem with the PV at every dead time come from one
 matrix product per pole).  The linear model is the ``fs = fd = 0`` member of the family.
 
@@ -138,14 +140,15 @@ def _cumsum0(f: np.ndarray) -> np.ndarray:
     return c
 
 
-def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int,
+def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int, min_dead_time: int = 0,
                     poles: np.ndarray | None = None) -> HammersteinFit:
     """Fit ``pv(k) = K G_a(q) x(k - d) + c + c' a^k`` for every stem ``x`` (rows of
-    ``stems``), best over the pole grid and ``d = 0 … max_dead_time`` (separable least squares,
+    ``stems``), best over the pole grid and ``d = min_dead_time … max_dead_time`` (separable least squares,
     see the module docstring).  ``c' a^k`` is the free response of the lag from its unknown
     state at the window's start (for a pole near 1 it is the drift of an integrating PV); the
     input enters as ``x - x(0)``.  All fits use the same samples ``max_dead_time … n-1``.
-    ``poles``: the poles searched (default :func:`_time_constants`)."""
+    ``min_dead_time``: the shortest dead time searched; ``poles``: the poles searched (default
+    :func:`_time_constants`)."""
     pv = np.asarray(pv, dtype=np.float64)
     stems = np.atleast_2d(np.asarray(stems, dtype=np.float64))
     m, n = stems.shape
@@ -189,6 +192,7 @@ def hammerstein_fit(pv: np.ndarray, stems: np.ndarray, *, max_dead_time: int,
         with np.errstate(divide="ignore", invalid="ignore"):
             ok = sff > 1e-9 * np.maximum(c2[:, lo + N] - c2[:, lo], 1e-300)
             sse = np.where(ok, syy - sfy * sfy / np.where(ok, sff, 1.0), syy)
+        sse[:, :min_dead_time] = np.inf
         j = np.argmin(sse, axis=1)
         v = sse[rows, j]
         better = v < best
@@ -222,7 +226,8 @@ class StictionTest:
     units); ``sse_ratio`` Hammerstein / linear error; ``statistic`` the autocorrelation-corrected
     likelihood ratio and ``penalty`` what it had to exceed; ``slips`` the fitted stem's moves
     after a stuck phase, ``stuck_fraction`` of the window the fitted stem held while the OP
-    moved; ``stem`` the fitted stem (OP units).
+    moved; ``pole`` and ``dead_time`` (samples) the fitted lag of the stiction model; ``stem``
+    the fitted stem (OP units).
     """
 
     sticking: bool
@@ -234,6 +239,8 @@ class StictionTest:
     slips: int
     stuck_fraction: float
     reason: str
+    pole: float = 0.0
+    dead_time: int = 0
     stem: np.ndarray = field(default=None, repr=False, compare=False)
 
 
@@ -243,7 +250,8 @@ def _noise_std(x: np.ndarray) -> float:
 
 
 def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: float = 0.1,
-                  max_dead_time: int | None = None, highpass: int | None = None) -> StictionTest | None:
+                  max_dead_time: int | None = None, min_dead_time: int = 1,
+                  highpass: int | None = None, refine_rounds: int = 1) -> StictionTest | None:
     """Is the PV explained better by a sticking valve than by a linear one?  (Module docstring.)
 
     Parameters
@@ -254,8 +262,13 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
         friction that holds the stem for a small part of the control action is no fault
         worth reporting (and a small model mismatch reads as one).
     max_dead_time : longest dead time searched, samples (default a tenth of the window).
+    min_dead_time : shortest dead time searched, samples: 1, because a PV sample cannot answer
+        the OP computed from it (at lag 0 the OP carries the controller's reaction to the PV's
+        measurement noise, which a linear model of PV from OP would fit and a held stem cannot).
     highpass : length in samples of the moving average removed from PV and stems before the
         fit (default an eighth of the window; 0: none).
+    refine_rounds : narrowed refinement passes after the first fine one (fs x 0.92-1.08,
+        fd/fs +- 0.125, initial force +- 0.15 fs around the best).
 
     Returns
     -------
@@ -292,7 +305,8 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
             stems_w = (stems - uniform_filter1d(stems, L, axis=1, mode="nearest"))[:, h:n - h]
         else:
             stems_w = stems
-        return FS, FD, F0, stems, stems_w, hammerstein_fit(pv_w, stems_w, max_dead_time=D, poles=poles)
+        fit = hammerstein_fit(pv_w, stems_w, max_dead_time=D, min_dead_time=min_dead_time, poles=poles)
+        return FS, FD, F0, stems, stems_w, fit
 
     pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h] if L > 1 else pv
     FS, FD, F0, stems, stems_w, fit = fit_grid(FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
@@ -302,20 +316,30 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     sse_lin, sse_st = float(fit.sse[0]), float(fit.sse[i])
     if not sse_lin > 0:
         return None
-    # second, finer pass around the best stiction candidate (the slip times hinge on fs and the
+    # finer passes around the best stiction candidate (the slip times hinge on fs and the
     # initial force together: the coarse grid can miss a slip by tens of samples), over the
-    # coarse fit's pole and its two neighbours; same family, same parameters
+    # best fit's pole and its two neighbours; same family, same parameters.  The first spans
+    # fd/fs and the initial force whole, each further one (``refine_rounds``) narrows all three
+    # around the best so far
     poles = _time_constants(n)
-    j = int(np.argmin(np.abs(poles - fit.pole[i])))
-    g = np.array(np.meshgrid(FS[i] * np.array([0.8, 0.9, 1.0, 1.12, 1.25]), [0.0, 0.25, 0.5, 0.75, 1.0],
-                             np.linspace(-0.9, 0.9, 7), indexing="ij")).reshape(3, -1)
-    g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
-    if g.shape[1]:
+    spans = [(np.array([0.8, 0.9, 1.0, 1.12, 1.25]), None, None)] + [
+        (np.array([0.92, 0.96, 1.0, 1.04, 1.08]), np.array([-0.125, 0.0, 0.125]), np.linspace(-0.15, 0.15, 7))
+    ] * refine_rounds
+    for fs_mul, fd_off, f0_off in spans:
+        j = int(np.argmin(np.abs(poles - fit.pole[i])))
+        r_d, r_0 = FD[i] / FS[i], F0[i] / FS[i]
+        fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
+        f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
+        g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
+        g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
+        if not g.shape[1]:
+            break
         fine = fit_grid(g[0], g[0] * g[1], g[0] * g[2], poles=poles[max(j - 1, 0):j + 2])
         k = int(np.argmin(fine[-1].sse))
-        if fine[-1].sse[k] < sse_st:
-            FS, FD, _, stems, stems_w, fit = fine
-            i, sse_st = k, float(fit.sse[k])
+        if not fine[-1].sse[k] < sse_st:
+            break
+        FS, FD, F0, stems, stems_w, fit = fine
+        i, sse_st = k, float(fit.sse[k])
     r = _residual(pv_w, stems_w[i], float(fit.pole[i]), int(fit.dead_time[i]), D)
     r1 = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.99))
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)
@@ -333,4 +357,4 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     else:
         reason = f"the PV follows the OP (a stiction model leaves {ratio:.0%} of a linear model's error)"
     return StictionTest(bool(sticking), float(FS[i]), float(FD[i]), ratio, stat, penalty, slips, frac, reason,
-                        stems[i])
+                        float(fit.pole[i]), int(fit.dead_time[i]), stems[i])

@@ -523,6 +523,11 @@ STICK_CASES = {  # case: truth (the valve sticks?)
     "healthy, SIMC PI, SP steps, disturbances compensated": False,
     "stiction (Karnopp), slow PI, SP moves in bursts of clicks": True,
     "healthy, SIMC PI, cascade set point, disturbances compensated": False,
+    # session 5: the shapes the plant misses and their healthy twins
+    "stiction (Karnopp), flow loop, slow integral ramps, small slips": True,
+    "stiction (two-parameter), slow PI, SP reversals": True,
+    "healthy, flow loop, slow integral ramps, slow load drift": False,
+    "healthy, slow PI, SP reversals": False,
 }
 
 
@@ -542,7 +547,18 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
     bursts: each move made of 2-3 clicks 1-5 s apart (as operators move set points).  Cascade
     set point: a master's output, two sinusoids of period 200-1000 s and amplitude 1-3 on the
     set point, quantised to 0.01 (it changes at nearly every sample).  Windows whose stem limit-cycles (>= 4 cycles) are drawn again: the
-    detector is for sticking valves *without* a limit cycle."""
+    detector is for sticking valves *without* a limit cycle.
+
+    Session 5 cases (the shapes of the plant misses, each with a healthy twin).  Flow loop: a
+    fast plant (tau 1-4 s, dead time 1 s), a PI with the SIMC gain times 0.1-0.3 and the
+    integral gain times 0.005-0.03 (the OP ramps for hundreds of samples), SP moves of 0.5-3;
+    small slips: a Karnopp valve with F_s 1-4, F_c 0.7-0.95 F_s (a slip jump of a few
+    measurement-noise deviations or less); its healthy twin: a linear valve and a slow load
+    drift (a sinusoid of period 3000-12000 s, amplitude 3-10, on the PV: locally a ramp that
+    the slow integral follows with a constant error, as a stuck valve's OP does).  SP
+    reversals: the SP moves alternate in sign, so the OP reverses while a two-parameter valve
+    (S 3-8, J 0.2-0.8 S) is stuck (stuck across an OP reversal); its healthy twin the same with
+    a linear valve."""
     for _ in range(20):
         tau = float(np.exp(rng.uniform(np.log(5), np.log(40))))
         if case == "healthy, near-integrating plant":
@@ -550,13 +566,25 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
         theta = max(1.0, float(rng.uniform(0.1, 0.5)) * min(tau, 40.0))
         plant = FOPDT(float(np.exp(rng.uniform(np.log(0.5), np.log(3)))), tau, theta)
         pi = simc(plant)
-        if "slow PI" in case or "stiction" in case:
+        flow = "flow loop" in case
+        if flow:  # a fast flow loop, a very slow integral
+            plant = FOPDT(plant.gain, float(rng.uniform(1, 4)), 1.0)
+            pi = simc(plant)
+            pi = PIController(pi.kc * float(rng.uniform(0.1, 0.3)), pi.ki * float(rng.uniform(0.005, 0.03)))
+        elif "slow PI" in case or "stiction" in case:
             pi = PIController(pi.kc * float(rng.uniform(0.2, 0.6)), pi.ki * float(rng.uniform(0.1, 0.5)))
         times = np.sort(rng.uniform(800, 1350, int(rng.integers(2, 5))))
         level = 50.0
         steps = [SetpointStep(0.0, level)]
+        sign = float(rng.choice([-1, 1])) if "reversals" in case else 0.0
         for t in times:
-            move = float(rng.choice([-1, 1]) * rng.uniform(2, 10))
+            if flow:
+                move = float(rng.choice([-1, 1]) * rng.uniform(0.5, 3))
+            elif sign:  # alternating moves: the OP reverses
+                sign = -sign
+                move = sign * float(rng.uniform(2, 10))
+            else:
+                move = float(rng.choice([-1, 1]) * rng.uniform(2, 10))
             if "bursts" in case:  # the move in 2-3 clicks a few seconds apart
                 clicks = int(rng.integers(2, 4))
                 for j, dt in enumerate(np.cumsum(np.r_[0.0, rng.uniform(1, 5, clicks - 1)])):
@@ -577,13 +605,22 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
         if case.startswith("stiction,"):
             s = float(rng.uniform(2, 8))
             kw["valve"] = ChoudhuryStictionSpec(S=s, J=s * float(rng.uniform(0.0, 0.5)))
-        if case.startswith("stiction (Karnopp)"):  # also the bursts case
+        if case.startswith("stiction (two-parameter)"):
+            s = float(rng.uniform(3, 8))
+            kw["valve"] = ChoudhuryStictionSpec(S=s, J=s * float(rng.uniform(0.2, 0.8)))
+        if case.startswith("stiction (Karnopp), flow loop"):
+            f_s = float(rng.uniform(1, 4))
+            kw["valve"] = KarnoppLoopSpec(fc=f_s * float(rng.uniform(0.7, 0.95)), fs=f_s)
+        elif case.startswith("stiction (Karnopp)"):  # also the bursts case
             f_s = float(rng.uniform(1, 6))
             kw["valve"] = KarnoppLoopSpec(fc=f_s * float(rng.uniform(0.2, 0.8)), fs=f_s)
         if "compensated" in case:  # a wandering load the OP cancels (PV near the SP)
             kw["disturbances"] = tuple(
                 Sinusoid(float(rng.uniform(0.3, 2)), 2 * np.pi / float(np.exp(rng.uniform(np.log(50), np.log(750)))),
                          float(rng.uniform(0, 2 * np.pi))) for _ in range(3))
+        if "load drift" in case:  # locally a ramp over the window
+            period = float(rng.uniform(3000, 12000))
+            kw["disturbances"] = (Sinusoid(float(rng.uniform(3, 10)), 2 * np.pi / period, float(rng.uniform(0, 2 * np.pi))),)
         if "load swing" in case:
             period = float(rng.uniform(300, 1500))
             kw["disturbances"] = (Sinusoid(float(rng.uniform(1, 5)), 2 * np.pi / period, float(rng.uniform(0, 2 * np.pi))),)
