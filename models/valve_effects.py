@@ -355,10 +355,12 @@ def simulate_effects(
     re-seated (multiple shooting from measured rest states, used by :mod:`models.reconcile`).
 
     ``substeps``: integration steps per sample (the pressure held at each sample over its
-    sub-steps).  The default, one, is what the workflow fits; more sub-steps converge to the
-    continuous solution of eq. (1)–(2) for that pressure and measure the one-step scheme's
-    discretisation error (on a 60 kPa step of a fast valve it stays below 1 µm after the first
-    millisecond, see ``tests/test_valve_effects.py``)."""
+    sub-steps).  The default, one, is what the workflow fits; more sub-steps converge (first
+    order) to the continuous solution of eq. (1)–(2) for that held pressure and measure the
+    one-step scheme's discretisation error: 0.7 % of an 8 mm slide after a pressure step at one
+    step, 0.01 % at 64 (``tests/test_valve_effects.py``, against the analytic step response).
+    On a smooth pressure the hold is half a sample early, which the one-step scheme's half-step
+    lag cancels: there more sub-steps are not closer to the continuous valve."""
     p = np.ascontiguousarray(p, dtype=float)
     if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
         raise ModelConfigError("p must be a non-empty 1-D array of finite pressures (Pa)")
