@@ -100,3 +100,27 @@ def test_hidden_record_noise_and_truth():
     assert np.std(rec.x - rec.x_true) == pytest.approx(2e-5, rel=0.05)
     assert np.std(rec.p - rec.p_true) == pytest.approx(100.0, rel=0.05)
     assert rec.valve.deadband == 1e-3
+
+
+def test_substeps_converge_to_the_step_response_of_eq_1():
+    # planted truth: a stem at rest with F_s = F_c under a pressure step held from the sample
+    # before it slides by m·z'' + F_v·z' + k·z = ΔF − F_c (eq. 1–2, overdamped, no reversal), whose
+    # solution is z∞·(1 + (r2·e^{r1 t} − r1·e^{r2 t}) / (r1 − r2)).  The one-step scheme the
+    # workflow fits is first order: its error halves with every doubling of the sub-steps.
+    k, m, fv, fc, sa, dt = 2e5, 2.0, 8000.0, 400.0, 0.0445, 1e-3
+    valve = EffectValve(k=k, fc=fc, fv=fv, m=m, sa=sa, dv=1e-7)
+    p0, df = 50e3, 2000.0
+    p = np.r_[np.full(100, p0), np.full(300, p0 + df / sa)]
+    x0 = sa * p0 / k
+    zinf = (df - fc) / k  # 8 mm
+    root = math.sqrt(fv * fv - 4 * m * k)
+    r1, r2 = (-fv + root) / (2 * m), (-fv - root) / (2 * m)
+    t = dt * (np.arange(p.size) - 99)  # p[100] acts from t[99] on
+    z = np.where(t > 0, zinf * (1 + (r2 * np.exp(r1 * t) - r1 * np.exp(r2 * t)) / (r1 - r2)), 0.0)
+    err = {n: np.max(np.abs(simulate_effects(valve, p, dt, x0_meas=x0, substeps=n).x - x0 - z)) for n in (1, 4, 16, 64)}
+    for n in (1, 4, 16):
+        assert 3.0 < err[n] / err[4 * n] < 5.0  # first order: 4 times the sub-steps, a quarter of the error
+    assert err[64] < 1e-6
+    assert err[1] < 0.01 * zinf  # the production scheme: within 1 % of an 8 mm step
+    with pytest.raises(ModelConfigError):
+        simulate_effects(valve, p, dt, substeps=0)
