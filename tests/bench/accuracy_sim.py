@@ -531,8 +531,9 @@ STICK_CASES = {  # case: truth (the valve sticks?)
 }
 
 
-def stick_case(case: str, rng: np.random.Generator, seed: int):
-    """One planted window (751 samples at 1 s) for :data:`STICK_CASES`: (pv, op, sp, stem) or None.
+def stick_case(case: str, rng: np.random.Generator, seed: int, n: int = 751):
+    """One planted window (``n`` samples at 1 s, 751 unless told; the set-point steps fall in
+    800 s .. n + 599 s) for :data:`STICK_CASES`: (pv, op, sp, stem) or None.
 
     A FOPDT plant (gain 0.5-3, tau 5-40 s, dead time 0.1-0.5 tau; near-integrating: tau
     2000-20000 s), a 751 s warm-up at the set point 50, then 2-4 set-point steps of 2-10 % at random times, measurement noise 0.5-5 %
@@ -573,7 +574,7 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
             pi = PIController(pi.kc * float(rng.uniform(0.1, 0.3)), pi.ki * float(rng.uniform(0.005, 0.03)))
         elif "slow PI" in case or "stiction" in case:
             pi = PIController(pi.kc * float(rng.uniform(0.2, 0.6)), pi.ki * float(rng.uniform(0.1, 0.5)))
-        times = np.sort(rng.uniform(800, 1350, int(rng.integers(2, 5))))
+        times = np.sort(rng.uniform(800, 599 + n, int(rng.integers(2, 5))))
         level = 50.0
         steps = [SetpointStep(0.0, level)]
         sign = float(rng.choice([-1, 1])) if "reversals" in case else 0.0
@@ -594,12 +595,12 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
             level += move
             steps.append(SetpointStep(float(t), level))
         if "cascade" in case:  # a master's wandering output, changing at nearly every sample
-            tt = np.arange(0.0, 1502.0)
+            tt = np.arange(0.0, 751.0 + n)
             w = sum(float(rng.uniform(1, 3)) * np.sin(2 * np.pi * tt / float(rng.uniform(200, 1000)) + float(rng.uniform(0, 2 * np.pi)))
                     for _ in range(2))
             steps = [SetpointStep(float(ti), float(np.round(50.0 + wi, 2))) for ti, wi in zip(tt, w)]
         steps.sort(key=lambda st: st.time_s)  # clicks of one move may pass the next move's time
-        kw = dict(plant=plant, controller=pi, setpoint_steps=tuple(steps), duration_s=1502.0,
+        kw = dict(plant=plant, controller=pi, setpoint_steps=tuple(steps), duration_s=751.0 + n,
                   measurement_noise_std=float(rng.uniform(0.005, 0.05)) * 10,
                   load_noise_std=float(rng.uniform(0.0, 0.02)) * 10)
         if case.startswith("stiction,"):
@@ -627,13 +628,13 @@ def stick_case(case: str, rng: np.random.Generator, seed: int):
         sim = simulate_loop(LoopScenario(**kw), seed=seed)
         if not np.all(np.isfinite(sim.pv)):
             continue
-        if case.startswith("stiction") and limit_cycles(sim.mv[-751:]) >= 4:
+        if case.startswith("stiction") and limit_cycles(sim.mv[-n:]) >= 4:
             continue
-        return sim.pv[-751:], sim.op[-751:], sim.sp[-751:], sim.mv[-751:]
+        return sim.pv[-n:], sim.op[-n:], sim.sp[-n:], sim.mv[-n:]
     return None
 
 
-def stick_benchmark(n_per_case: int, seed: int):
+def stick_benchmark(n_per_case: int, seed: int, window: int = 751):
     """Share of planted windows with stick-slip episodes found (per case); for the sticking
     cases also among the windows whose planted stem moved at all (a stem held throughout the
     window leaves the PV nothing to show)."""
@@ -644,7 +645,7 @@ def stick_benchmark(n_per_case: int, seed: int):
     for case in STICK_CASES:
         found[case], moved[case] = [], []
         for i in range(n_per_case):
-            w = stick_case(case, rng, seed + i)
+            w = stick_case(case, rng, seed + i, n=window)
             if w is not None:
                 r = stick_slip_episodes(w[0], w[1], w[2])
                 found[case].append(bool(r and r.episodes))
@@ -663,3 +664,12 @@ def stick_benchmark(n_per_case: int, seed: int):
 def test_stick_slip_planted():
     _planted_report("stick-slip planted", stick_benchmark, env="LOOPWATCH_STICK_CASES", default=60,
                     figure="episodes found in")
+
+
+@pytest.mark.bench
+def test_stick_slip_planted_long():
+    """The planted stick-slip cases on 4096-sample windows (the monitor's default length; the
+    same loops, 2-4 set-point moves spread over the window): a window this long is tested in
+    segments at its own sampling (pipeline.stickslip)."""
+    _planted_report("stick-slip planted, 4096-sample windows", lambda n, seed: stick_benchmark(n, seed, window=4096),
+                    env="LOOPWATCH_STICK_LONG_CASES", default=20, figure="episodes found in")
