@@ -711,14 +711,14 @@ def cross_correlation(e: np.ndarray, u: np.ndarray, dt: float, max_lag_s: float 
 
 
 def _alternatives(effect: str, keep: list[str], new: str) -> list[str]:
-    """Effects that may stand in for an accepted ``effect`` once ``new`` is added: those that
-    predict the same regimes (the regime split cannot tell them apart, and the first search step
-    chose between them without ``new``: a lag absorbs part of a deadband's lost motion at the
-    reversals, a dead time does not), compatible with ``keep`` (the other effects of the model)
-    and ``new``."""
+    """Effects that may stand in for an accepted ``effect`` once ``new`` is added: every effect
+    compatible with ``keep`` (the other effects of the model) and ``new``.  The earlier step chose
+    ``effect`` without ``new``, so it may have absorbed part of ``new``'s signature: a lag absorbs
+    part of a deadband's lost motion at the reversals (a dead time does not), and on a square wave
+    through a slow V/P converter a deadband's delay after each reversal stands in for a lag plus
+    a dead time (the regime split cannot tell these apart: every edge is a reversal)."""
     taken = set(keep) | {effect, new}
-    return [a for a in EFFECTS if a not in taken and PREDICTS[a] == PREDICTS[effect]
-            and not ({_EXCLUSIVE.get(a)} & (set(keep) | {new}))]
+    return [a for a in EFFECTS if a not in taken and not ({_EXCLUSIVE.get(a)} & (set(keep) | {new}))]
 
 
 def _public(vals: dict[str, float], dv: float) -> dict[str, float]:
@@ -835,7 +835,12 @@ def reconcile(
                 if not vs:
                     continue
                 vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
-                if fold_sse(vfit.vals, fold) < fold_sse(fit.vals, fold):
+                # a swap must beat the candidate's own fit by the relevance bar, as a refit must:
+                # a smaller gain on the fitting blocks is no evidence for the other model (on an
+                # independent PRBS record a swap won the fitting blocks by less and lost the
+                # held-out ones by more than the noise power)
+                bar = cfg.min_gain * noise_pow * sum(int(_fold_mask(r, fold).sum()) for r in recs)
+                if fold_sse(vfit.vals, fold) < fold_sse(fit.vals, fold) - bar:
                     fit, replaces, with_, fit_free = vfit, a, alt, vfree
         return fit, replaces, with_, fit_free
 
