@@ -33,7 +33,7 @@ from .errors import PipelineConfigError, SignalError
 from .frequency import instantaneous_frequency
 from .gate import GateConfig, GateResult, detrend_linear, oscillation_gate
 from .pruning import significant_imfs
-from .quality import frozen_pv, window_guards
+from .quality import window_guards
 from .robust import RobustConfig, RobustResult, robust_dnl_test
 from .stickslip import StickSlip, stick_slip_episodes
 
@@ -188,7 +188,7 @@ def diagnose_window(
     Returns
     -------
     WindowDiagnosis; ``verdict`` is ``invalid`` when the window cannot be analysed (the reason
-    says why: manual mode, too many missing samples, a PV frozen while the OP moves, ...), ``not_oscillating`` when the gate rejects it (EMD is then not run).
+    says why), ``not_oscillating`` when the gate rejects it (EMD is then not run).
     """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim != 1:
@@ -199,10 +199,6 @@ def diagnose_window(
         manual = int(np.count_nonzero(np.isfinite(mode) & (mode != 1)))
         if manual:
             return WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {x.size} samples")
-    if op is not None:
-        dead = frozen_pv(x, np.asarray(op, dtype=np.float64))
-        if dead:
-            return WindowDiagnosis("invalid", dead)
     notes: list[str] = []
     pv = x
     if config.method == "robust" and sp is not None:

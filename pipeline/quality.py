@@ -11,18 +11,14 @@ A window that fails a guard is not declared ``nonlinear``: the verdict becomes `
   the rest is straight-line interpolation or repeated values: corners everywhere (Thornhill,
   Choudhury & Shah 2004, "The impact of compression on data-driven process analyses");
 * saturation: an OP at its limit clips the loop, a non-linearity of the controller, not of the
-  valve;
-* a frozen PV: a measurement that does not change by a single bit over a window in which the OP
-  moves is a dead transmitter or a stale tag (no process under closed-loop control holds its
-  measurement exactly still against a moving valve and measurement noise); nothing in such a
-  window can be diagnosed, and calling it ``not_oscillating`` would hide a broken instrument.
+  valve.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["quantisation", "compression", "saturation", "frozen_pv", "window_guards"]
+__all__ = ["quantisation", "compression", "saturation", "window_guards"]
 
 
 def quantisation(x: np.ndarray, *, min_levels: int = 16) -> str | None:
@@ -63,16 +59,6 @@ def saturation(op: np.ndarray, *, max_fraction: float = 0.05, limits: tuple[floa
     frac = float(np.mean(at))
     if frac > max_fraction and (limits is not None or np.any(np.diff(op)[at[1:]] == 0)):
         return f"OP saturated: at its limit for {frac:.0%} of the window"
-    return None
-
-
-def frozen_pv(pv: np.ndarray, op: np.ndarray) -> str | None:
-    """The PV holds one value over the whole window (at least two samples) while the OP moves."""
-    pv = pv[np.isfinite(pv)]
-    op = op[np.isfinite(op)]
-    if pv.size >= 2 and op.size >= 2 and np.all(pv == pv[0]) and np.ptp(op) > 0:
-        return (f"PV frozen at {pv[0]:.6g} for the whole window while the OP moves over {np.ptp(op):.3g}: "
-                "a dead transmitter or a stale tag, nothing to diagnose")
     return None
 
 
