@@ -815,14 +815,21 @@ def reconcile(
             shorts.append(_fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016))
         shorts.sort(key=lambda f: f.sse_train)
         fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in shorts[:2]), key=lambda f: f.sse_train)
-        if fold_sse(fit.vals, fold) > base_sse:  # the fit got lost: the extension contains the current model
+        fit_sse = fold_sse(fit.vals, fold)
+        if fit_sse > base_sse:  # the fit got lost: the extension contains the current model
             v = dict(base)
             v.update({n: 0.0 for n in names})
             if eff == "stribeck":
                 v["vs"] = float(np.median([r.speed_typ for r in recs]))
             fit = _Fit(v, base_sse)
+            fit_sse = fold_sse(v, fold) if accepted else base_sse  # only the swaps below use it
         # the same candidate with an accepted effect swapped for an alternative (chosen on the
-        # fitting half only, so the out-of-sample test stays honest and is counted once)
+        # fitting half only, so the out-of-sample test stays honest and is counted once).  A
+        # swap must beat the candidate's own fit by the relevance bar, as a refit must: a
+        # smaller gain on the fitting blocks is no evidence for the other model (on an
+        # independent PRBS record a swap won the fitting blocks by less and lost the held-out
+        # ones by more than the noise power)
+        bar = cfg.min_gain * noise_pow * sum(int(_fold_mask(r, fold).sum()) for r in recs)
         replaces, with_, fit_free = "", "", free + names
         for a in accepted:
             keep = [e for e in accepted if e != a]
@@ -835,13 +842,9 @@ def reconcile(
                 if not vs:
                     continue
                 vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
-                # a swap must beat the candidate's own fit by the relevance bar, as a refit must:
-                # a smaller gain on the fitting blocks is no evidence for the other model (on an
-                # independent PRBS record a swap won the fitting blocks by less and lost the
-                # held-out ones by more than the noise power)
-                bar = cfg.min_gain * noise_pow * sum(int(_fold_mask(r, fold).sum()) for r in recs)
-                if fold_sse(vfit.vals, fold) < fold_sse(fit.vals, fold) - bar:
-                    fit, replaces, with_, fit_free = vfit, a, alt, vfree
+                vfit_sse = fold_sse(vfit.vals, fold)
+                if vfit_sse < fit_sse - bar:
+                    fit, fit_sse, replaces, with_, fit_free = vfit, vfit_sse, a, alt, vfree
         return fit, replaces, with_, fit_free
 
     def n_params(eff: str, replaces: str, with_: str) -> int:
