@@ -33,7 +33,7 @@ from .errors import PipelineConfigError, SignalError
 from .frequency import instantaneous_frequency
 from .gate import GateConfig, GateResult, detrend_linear, oscillation_gate
 from .pruning import significant_imfs
-from .quality import window_guards
+from .quality import frozen_pv, window_guards
 from .robust import RobustConfig, RobustResult, robust_dnl_test
 from .stickslip import StickSlip, stick_slip_episodes
 
@@ -180,7 +180,8 @@ def diagnose_window(
     sp : the set point over the same window when ``x`` is the PV (robust method).  When it
         changes inside the window, the control error ``sp - x`` is analysed instead of the PV
         (a set-point step in the PV is a transient, not an oscillation, and its corners would
-        read as intra-wave frequency modulation); the reason says so.
+        read as intra-wave frequency modulation); the reason says so.  A PV frozen to the bit while
+        the OP moves is noted in the reason (robust method; :func:`pipeline.quality.frozen_pv`).
     stick_slip : search a window that does not oscillate for stick-slip episodes (needs ``op``
         and ``sp``; the costliest step of a non-oscillating window).  A caller sliding
         overlapping windows may search only some of them (the monitor: one per window length).
@@ -201,6 +202,9 @@ def diagnose_window(
             return WindowDiagnosis("invalid", f"loop not in automatic for {manual} of {x.size} samples")
     notes: list[str] = []
     pv = x
+    frozen = frozen_pv(x, np.asarray(op, dtype=np.float64)) if config.method == "robust" and op is not None else None
+    if frozen:
+        notes.append(frozen)
     if config.method == "robust" and sp is not None:
         sp = np.asarray(sp, dtype=np.float64)
         change = _setpoint_change(sp, x)

@@ -12,13 +12,19 @@ A window that fails a guard is not declared ``nonlinear``: the verdict becomes `
   Choudhury & Shah 2004, "The impact of compression on data-driven process analyses");
 * saturation: an OP at its limit clips the loop, a non-linearity of the controller, not of the
   valve.
+
+One note does not change the verdict: a PV that holds one value to the bit over the whole window
+while the OP moves (:func:`frozen_pv`).  A dead transmitter or a stale tag does that, but so does a
+valve that does not move (a noise-free measurement of a valve resting in its deadband, a flow held
+at 0 by the transmitter's low-flow cut-off under a valve stuck closed), so the window is not
+declared broken; the reason says what was seen.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["quantisation", "compression", "saturation", "window_guards"]
+__all__ = ["quantisation", "compression", "saturation", "frozen_pv", "window_guards"]
 
 
 def quantisation(x: np.ndarray, *, min_levels: int = 16) -> str | None:
@@ -59,6 +65,17 @@ def saturation(op: np.ndarray, *, max_fraction: float = 0.05, limits: tuple[floa
     frac = float(np.mean(at))
     if frac > max_fraction and (limits is not None or np.any(np.diff(op)[at[1:]] == 0)):
         return f"OP saturated: at its limit for {frac:.0%} of the window"
+    return None
+
+
+def frozen_pv(pv: np.ndarray, op: np.ndarray) -> str | None:
+    """The PV holds one value over the whole window (at least two finite samples) while the OP
+    moves: a sentence for the reason, else None."""
+    pv = pv[np.isfinite(pv)]
+    op = op[np.isfinite(op)]
+    if pv.size >= 2 and op.size >= 2 and np.all(pv == pv[0]) and np.ptp(op) > 0:
+        return (f"the PV holds {pv[0]:.6g} to the bit for the whole window while the OP moves over {np.ptp(op):.3g}: "
+                "the valve does not move, or the measurement is dead (transmitter, stale tag, low-flow cut-off)")
     return None
 
 

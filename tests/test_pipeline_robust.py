@@ -10,7 +10,7 @@ from pipeline.diagnosis import DiagnosisConfig, diagnose_window
 from pipeline.dnl import imf_dnl
 from pipeline.errors import PipelineConfigError
 from pipeline.gate import acf_standard_error
-from pipeline.quality import compression, quantisation, saturation
+from pipeline.quality import compression, frozen_pv, quantisation, saturation
 from pipeline.robust import RobustConfig, mean_wave, robust_dnl_test, wave_dnl
 from pipeline.surrogates import harmonic_free_amplitudes, phase_randomised
 
@@ -136,6 +136,19 @@ def test_guards():
     assert "compression" in compression(np.interp(T[:1000], knots, x[knots]))
     op = np.clip(40 * x, -30, 30)
     assert saturation(op) and saturation(40 * x + 1e-3 * np.random.default_rng(0).standard_normal(1000)) is None
+
+
+def test_a_pv_frozen_while_the_op_moves_is_noted_without_changing_the_verdict():
+    rng = np.random.default_rng(3)
+    op = 40 + np.cumsum(0.05 * rng.standard_normal(751))  # a PI still acting on its error
+    dead = np.full(751, 3.5e-44)  # a dead tag (as in a real plant record) or a valve that does not move
+    d = diagnose_window(dead, fs=1.0, op=op, sp=np.full(751, 50.0))
+    assert d.verdict == "not_oscillating" and "holds 3.5e-44 to the bit" in d.reason
+    # a noise-free steady state (OP still as well) is nothing to note; one changed bit is no freeze
+    assert frozen_pv(dead, np.full(751, 40.0)) is None
+    assert frozen_pv(np.r_[dead[:-1], 3.6e-44], op) is None
+    noisy = diagnose_window(50 + 0.01 * rng.standard_normal(751), fs=1.0, op=op, sp=np.full(751, 50.0))
+    assert "to the bit" not in noisy.reason
 
 
 def test_quantised_stick_slip_is_not_called_nonlinear():
