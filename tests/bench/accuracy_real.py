@@ -104,3 +104,58 @@ def test_accuracy_real_data():
         for k in sorted(verdicts):
             lab = plant_labels.get(k) or labels.get(k.split("/")[1], {}).get("oscillation", "")
             w.writerow([k, lab, verdicts[k]["robust"], verdicts[k]["robust_stuck"], verdicts[k]["paper"]])
+
+
+def _gate_statistics(x, *, fs: float) -> tuple[float, float]:
+    """The strongest evidence the gate's two detectors see in a window, over the raw signal and
+    the band candidates with regular zero crossings (r > 1): the ACF peak persistence in standard
+    errors of its null, and the envelope's steadiness in standard errors (band candidates)."""
+    import numpy as np
+    from scipy import fft
+
+    import pipeline.gate as g
+
+    y = g.detrend_linear(np.asarray(x, float))
+    n = y.size
+    max_lag = (2 * n) // 3
+    per, spec = g.hann_periodogram(y), fft.rfft(y)
+    z_acf = z_env = -np.inf
+    for band in [None] + g._band_candidates(y, max_bands=3, min_period=3, max_period=max_lag / 5, spec=per):
+        w = bg = None
+        yy = y
+        if band is not None:
+            w = g.band_weights(g._frequencies(n), f_lo=band[0], f_hi=band[1])
+            yy, bg = g._bandpass(y, *band, spectrum=spec, weights=w), g.power_law_background(per, band)
+        tp, reg, _, pers = g.regularity(g.acf(yy, max_lag=max_lag), n_total=n, min_periods=3)
+        if not (np.isfinite(tp) and reg > 1):
+            continue
+        infl = np.sqrt(n / max(n - min(3, int((max_lag + 1) / tp - 0.25)) * tp, 1.0))
+        z_acf = max(z_acf, pers / (infl * g.acf_standard_error(n, band, weights=w, background=bg)))
+        if band is not None:
+            z_env = max(z_env, g.envelope_test(spec * w, w**2 * bg, n, trim=int(np.ceil(tp)))[1])
+    return z_acf, z_env
+
+
+@pytest.mark.bench
+def test_isdb_oscillation_flag_ceiling():
+    """How far the ISDB oscillation flags can be reached with the gate's own statistics: the
+    balanced accuracy of the best single threshold on each, *fitted to the flags* (an oracle,
+    for the report only: no threshold of the gate comes from here)."""
+    import numpy as np
+
+    isdb = SHARED_DATA / "isdb"
+    if not isdb.is_dir():
+        pytest.skip("no shared data")
+    rows = []
+    for loop, lab in isdb_labels(isdb).items():
+        if "oscillation" in lab:
+            data = read_loop_csv(isdb / f"{loop}.csv")
+            op = data.op[np.isfinite(data.op)][-4096:]
+            rows.append((*_gate_statistics(op, fs=1.0 / data.sample_time_s), lab["oscillation"] == "oscillating"))
+    za, ze, pos = (np.array(c) for c in zip(*rows))
+
+    def oracle(v):
+        return max(0.5 * (np.mean(v[pos] >= t) + np.mean(v[~pos] < t)) for t in np.unique(v))
+
+    print(f"\n[isdb ceiling] {pos.sum()} oscillating / {(~pos).sum()} not; best single threshold fitted to the flags: "
+          f"ACF persistence z {oracle(za):.3f}, envelope z {oracle(ze):.3f}, max of both {oracle(np.maximum(za, ze)):.3f}")
