@@ -865,7 +865,12 @@ def reconcile(
                 continue
             shorts.append(_fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016))
         shorts.sort(key=lambda f: f.sse_train)
-        fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in shorts[:2]), key=lambda f: f.sse_train)
+        # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
+        # refined: a short fit does not tell which rule fits the record once converged
+        rules = {(f.vals.get("nb"), f.vals.get("dv")) for f in shorts}
+        best = ([next(f for f in shorts if (f.vals.get("nb"), f.vals.get("dv")) == r) for r in rules]
+                if len(rules) > 2 else shorts[:2])
+        fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in best), key=lambda f: f.sse_train)
         fit_sse = fold_sse(fit.vals, fold)
         if fit_sse > base_sse:  # the fit got lost: the extension contains the current model
             v = dict(base)
