@@ -7,7 +7,12 @@ missing effect explains it, and how much does adding it shrink the gap.
    (simulated vs. measured position), started from the sliding force balance (eq. 4–7, 15).
    The model is driven by a *filtered* pressure (:func:`smooth_pressure`): a Karnopp valve with
    ``F_s = F_c`` rests exactly on the edge of its stick band, and pressure noise would keep
-   breaking the simulated stem loose.
+   breaking the simulated stem loose.  What noise the smoothing leaves is kept out of the
+   stick/slip decisions of eq. (2) by a stick band of ``stick_band`` (3) standard deviations of
+   it, as a force, per sample (:func:`models.valve_effects.simulate_effects`): a simulated stem
+   at rest breaks away only beyond its holding friction plus the band, and a moving one sticks
+   only when the force would reverse it by more than the band (a real stem slides until the
+   force reverses it; the recorded pressure's noise is not a force on it).
 2. **Where they disagree** (:func:`regimes`, :func:`regime_table`): every sample is put in one
    regime (after a reversal, breakaway, step transient, sliding fast/slow, stuck, steady) and the
    squared residual is split by regime; the residual–input cross-correlation is reported.
