@@ -421,7 +421,7 @@ def simulate_effects(
         raise ModelConfigError("band must be a finite force >= 0 (N), one number or one per pressure sample")
     x, v, y = _karnopp_kernel(pa, float(dt), valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs,
                               valve.dv, valve.sa, x0, 0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, reset,
-                              np.ascontiguousarray(np.broadcast_to(band_a, p.shape)), int(substeps))
+                              np.array(np.broadcast_to(band_a, p.shape)), int(substeps))  # a writable copy: one compiled type
     return EffectSim(p_act=pa, x=x, v=v, x_meas=y - valve.bias)
 
 
