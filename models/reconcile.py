@@ -523,12 +523,12 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     into a stick-slip staircase that the data may not show (a slide is metastable near DV);
     with ``F_s = F_c`` (the baseline) DV hardly matters.  With a stick band
     (``ReconcileConfig.stick_band`` > 0, which every model of the search carries unless it says
-    otherwise) they are tried with three stick rules: the band (a moving stem sticks only when
-    the force reverses it by more than the pressure noise, whatever its speed: the DV test acts
-    at rest only), and eq. (2) as written at both DVs without a band (a valve whose slides end at
-    DV, as the paper's model, is fitted by its own rule).  The rule is one held choice (``nb``,
-    the band in noise standard deviations, with ``dv``), counted as one parameter in the
-    penalty as DV alone was."""
+    otherwise) they are tried with two stick rules instead: the band (a moving stem sticks only
+    when the force reverses it by more than the pressure noise, whatever its speed: the DV test
+    acts at rest only, which makes the tenth-DV start moot), and eq. (2) as written without a
+    band (a valve whose slides end at DV, as the paper's model, is fitted by its own rule).  The
+    rule is one held choice (``nb``, the band in noise standard deviations, with ``dv``),
+    counted as one parameter in the penalty as DV was."""
     fc, k = vals["fc"], vals["k"]
     vt = float(np.median([r.speed_typ for r in recs]))
     if effect in ("slip_jump", "stribeck"):
@@ -548,9 +548,10 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
             else:
                 out += [{**extra, "dfs": f * fc0, "vs": g * vt} for f in (0.3, 0.8) for g in (0.5, 2.0)]
         dv0 = vals.get("dv", dv)
-        rules = [{"dv": d} for d in (dv0, 0.1 * dv0)]
         if cfg.stick_band > 0:  # the stick band (DV does not act on moving stems), or eq. (2) as written
-            rules = [{"nb": cfg.stick_band, "dv": dv0}] + [{**r, "nb": 0.0} for r in rules]
+            rules = [{"nb": cfg.stick_band, "dv": dv0}, {"nb": 0.0, "dv": dv0}]
+        else:
+            rules = [{"dv": d} for d in (dv0, 0.1 * dv0)]
         return [{**g, **r} for g in out for r in rules]
     # a baseline absorbs a lag or a dead time in its slide time constant F_v/k: give it back
     fv = vals["fv"]
@@ -872,9 +873,8 @@ def reconcile(
         shorts.sort(key=lambda f: f.sse_train)
         # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
         # refined: a short fit does not tell which rule fits the record once converged
-        rules = {(f.vals.get("nb"), f.vals.get("dv")) for f in shorts}
-        best = ([next(f for f in shorts if (f.vals.get("nb"), f.vals.get("dv")) == r) for r in rules]
-                if len(rules) > 2 else shorts[:2])
+        rules = {f.vals.get("nb") for f in shorts}
+        best = [next(f for f in shorts if f.vals.get("nb") == r) for r in rules] if len(rules) > 1 else shorts[:2]
         fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in best), key=lambda f: f.sse_train)
         fit_sse = fold_sse(fit.vals, fold)
         if fit_sse > base_sse:  # the fit got lost: the extension contains the current model
