@@ -239,7 +239,7 @@ def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
 
 
 @compile_cached
-def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, reset, nsub):  # pragma: no cover - compiled
+def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, reset, band, nsub):  # pragma: no cover - compiled
     """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
     Stribeck sliding friction solved implicitly, and the two stick/slip events placed inside the
     step instead of on the sample grid (so that the trajectory is continuous in the parameters):
@@ -264,6 +264,19 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     reading): at such a sample, if the stem is at rest, stem and reading are shifted together so
     that the reading equals it (a stuck valve's whole state is its position).
 
+    ``band`` (same length, N, >= 0) is the stick band of :func:`simulate_effects`: where it is 0
+    the stick/slip lines are those of eq. (2) above (bit for bit); where it is ``b > 0``
+
+    * a moving stem is not stuck by the DV test: it slides (first line of eq. 2) until its
+      velocity would reverse within a step;
+    * a stem that stops there sticks (second line, held by ``F_s``) only if the net force
+      ``F_ext − k·x`` opposes its motion by more than ``b`` beyond sliding friction
+      (``s·F_net < F_c − b``); otherwise it stops *free*: it moves on in the same direction
+      against the sliding friction at zero speed (``F_c``; ``F_s`` with Stribeck) and becomes
+      stuck only once the force falls below ``F_c − b`` in that direction;
+    * a stem at rest breaks away (third line) only when ``|F_net|`` exceeds its holding
+      friction by more than ``b``.
+
     Returns stem position x, velocity v and reading y.
     """
     n = p.size
@@ -278,20 +291,30 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     A = m + h * fv + kh2
     fs0 = fs if vs > 0.0 else fc  # sliding friction as the speed goes to zero
     f_prev = sa * p[0] - k * x
+    free = 0.0  # direction of a stop inside the stick band (0: none; the stem is held by F_s)
     for i in range(n):
+        b = band[i]
         for _ in range(nsub):
             f_net = sa * p[i] - k * x
             g = m * v + h * f_net
-            if abs(v) < dv:
-                if abs(f_net) <= fs:  # stick (2nd line of eq. 2)
+            if abs(v) < dv and (b <= 0.0 or v == 0.0):
+                fr = fs  # friction holding the stem, and acting at breakaway
+                if free != 0.0:
+                    if free * f_net < fc - b:  # the force clearly turned against the motion: stuck
+                        free = 0.0
+                    elif free * f_net > 0.0:  # stopped free: it moves on against sliding friction
+                        fr = fs0
+                thr = fr + b
+                if abs(f_net) <= thr:  # stick (2nd line of eq. 2)
                     v = 0.0
                 else:  # breakaway (3rd line), for the part of the step after the crossing
                     s = 1.0 if f_net > 0.0 else -1.0
                     hr = h
-                    if v == 0.0 and abs(f_prev) <= fs and abs(f_net) > abs(f_prev):
-                        hr = h * (abs(f_net) - fs) / (abs(f_net) - abs(f_prev))
-                    v = (m * v + hr * (f_net - fs * s)) / (m + hr * fv + k * hr * hr)
+                    if v == 0.0 and abs(f_prev) <= thr and abs(f_net) > abs(f_prev):
+                        hr = h * (abs(f_net) - thr) / (abs(f_net) - abs(f_prev))
+                    v = (m * v + hr * (f_net - fr * s)) / (m + hr * fv + k * hr * hr)
                     x = x + hr * v
+                    free = 0.0
             else:  # slip (1st line)
                 s = 1.0 if v > 0.0 else -1.0
                 if s * g > h * fs0:
@@ -301,6 +324,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                     v_free = (g - h * fs0 * s) / A  # where it would be without stopping (sign −s)
                     x = x + 0.5 * h * v * (v / (v - v_free))
                     v = 0.0
+                    if b > 0.0 and s * f_net >= fc - b:  # not clearly reversed: stopped free
+                        free = s
                 else:  # it reverses, with friction of the new sign
                     s = -s
                     v = s * _slide_speed(A, h, s * g, fc, fs, vs, 0.0)
@@ -346,6 +371,7 @@ def simulate_effects(
     x0_meas: float | None = None,
     rest_meas: np.ndarray | None = None,
     substeps: int = 1,
+    band: float | np.ndarray = 0.0,
 ) -> EffectSim:
     """Simulate the extended valve driven by the recorded pressure ``p`` (Pa, one per step of
     ``dt`` s).  The stem starts at rest at ``x0_meas + x̄`` (measured coordinate; default: at rest
@@ -360,7 +386,18 @@ def simulate_effects(
     one-step scheme's discretisation error: 0.7 % of an 8 mm slide after a pressure step at one
     step, 0.01 % at 64 (``tests/test_valve_effects.py``, against the analytic step response).
     On a smooth pressure the hold is half a sample early, which the one-step scheme's half-step
-    lag cancels: there more sub-steps are not closer to the continuous valve."""
+    lag cancels: there more sub-steps are not closer to the continuous valve.
+
+    ``band``: stick band ``b`` (N, >= 0; one number or one per sample), the force within which
+    the stick/slip decisions of eq. (2) are not taken on the recorded pressure.  It stands for
+    the noise of the recorded (filtered) pressure expressed as a force, ``b ≈ 3·σ_p·S_a``: that
+    noise is not a force on the real stem, yet with ``F_s = F_c`` it keeps breaking a simulated
+    stem loose at rest, and it stops a simulated stem that creeps on where a real stem slides
+    until the force reverses it.  With a band a moving stem sticks only when the net force
+    would reverse it by more than ``b``, a stem at rest breaks away only when
+    ``|S_a·p − k·x|`` exceeds its holding friction by more than ``b``, and the DV test of
+    eq. (2) applies to a stem at rest only (see :func:`_karnopp_kernel`).  0 (the default) is
+    eq. (2) as above, bit for bit."""
     p = np.ascontiguousarray(p, dtype=float)
     if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
         raise ModelConfigError("p must be a non-empty 1-D array of finite pressures (Pa)")
@@ -379,9 +416,12 @@ def simulate_effects(
         reset = np.ascontiguousarray(rest_meas, dtype=float) + valve.bias
         if reset.shape != p.shape:
             raise ModelConfigError("rest_meas must have the length of p")
+    band_a = np.asarray(band, dtype=float)
+    if band_a.shape not in ((), p.shape) or not np.all(np.isfinite(band_a)) or np.any(band_a < 0):
+        raise ModelConfigError("band must be a finite force >= 0 (N), one number or one per pressure sample")
     x, v, y = _karnopp_kernel(pa, float(dt), valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs,
                               valve.dv, valve.sa, x0, 0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, reset,
-                              int(substeps))
+                              np.array(np.broadcast_to(band_a, p.shape)), int(substeps))  # a writable copy: one compiled type
     return EffectSim(p_act=pa, x=x, v=v, x_meas=y - valve.bias)
 
 

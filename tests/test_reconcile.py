@@ -211,3 +211,16 @@ def test_a_dead_time_of_one_sample_on_the_same_record_is_named():
     r = reconcile(data, config=ReconcileConfig(sa=sa))
     assert r.effects[:1] == ["dead_time"]
     assert r.steps[0].params["theta_s"] == pytest.approx(1e-3, rel=0.2)
+
+
+def test_smoothing_reports_the_noise_it_leaves_in_each_sample():
+    # independent check by Monte Carlo: the std over 30 noise draws of the smoothed pressure, near a
+    # step (short windows: most of the noise stays) and on the steady stretch (long windows)
+    rng = np.random.default_rng(5)
+    n, sig = 6000, 300.0
+    base = np.where(np.arange(n) < 3000, 40e3, 70e3)
+    _, sd = smooth_pressure(base + sig * rng.standard_normal(n), 1e-3, return_noise=True)
+    emp = np.std([smooth_pressure(base + sig * rng.standard_normal(n), 1e-3) for _ in range(30)], axis=0)
+    for a, b in ((3000, 3010), (3300, 3500), (4500, 5500)):
+        assert np.mean(sd[a:b]) == pytest.approx(np.mean(emp[a:b]), rel=0.35)
+    assert np.mean(sd[3000:3010]) > 5 * np.mean(sd[4500:5500])  # wide at the edge, narrow when steady

@@ -124,3 +124,81 @@ def test_substeps_converge_to_the_step_response_of_eq_1():
     assert err[1] < 0.01 * zinf  # the production scheme: within 1 % of an 8 mm step
     with pytest.raises(ModelConfigError):
         simulate_effects(valve, p, dt, substeps=0)
+
+
+# --------------------------------------------------------------------------- stick band
+
+
+def _first_restart(x: np.ndarray, after: int) -> int:
+    """Index of the first sample after ``after`` at which a stem at rest moves again."""
+    mv = np.diff(x) != 0
+    rest = after + int(np.argmax(~mv[after:]))
+    return rest + int(np.argmax(mv[rest:])) + 1
+
+
+def test_stick_band_a_sliding_stem_that_stops_within_the_band_moves_on_against_coulomb_friction():
+    # planted truth, eq. (2): a stem slides up a slow force ramp (1 mm/s, above DV); a 20 ms dip
+    # of 8 N (F_net 3 N below F_c) stops it.  Without a band it sticks and needs F_s = 250 N to
+    # break away again (third line of eq. 2); with a 10 N band the net force never reversed it
+    # by more than the band, so it moves on once F_net exceeds F_c + b = 160 N (not F_s).
+    k, fc, fs, fv, sa, dt = 2e5, 150.0, 250.0, 5000.0, 0.0445, 1e-3
+    t = np.arange(0, 3.0, dt)
+    F = 200.0 + 200.0 * t - 8.0 * ((t >= 1.5) & (t < 1.52))
+    i_dip = int(np.argmax(t >= 1.5))
+    step = 200.0 * dt  # force increment per sample of the ramp
+    for dv, b, f_lo, f_hi in ((1e-4, 0.0, fs, fs + step), (1e-4, 10.0, fc + 10.0, fc + 10.0 + step)):
+        valve = EffectValve(k=k, fc=fc, fv=fv, sa=sa, dv=dv, fs=fs)
+        x = simulate_effects(valve, F / sa, dt, x0_meas=0.0, band=b).x
+        assert np.all(np.diff(x[1000:i_dip]) > 0)  # sliding before the dip
+        j = _first_restart(x, i_dip)
+        f_break = F[j] - k * x[j - 1]  # the net force that moved the stem again
+        assert f_lo - 1e-6 <= f_break <= f_hi + 1e-6, (b, f_break)
+    # the DV test of eq. (2) no longer sticks a moving stem: with DV (2 mm/s) above the sliding
+    # speed the band-free model breaks away again at every sample, so the slide runs against
+    # F_s + F_v·v = 255 N (third line of eq. 2 with viscous friction, v = R/k = 1 mm/s); with the
+    # band it slides against F_c + F_v·v = 155 N (first line)
+    slow = EffectValve(k=k, fc=fc, fv=fv, sa=sa, dv=2e-3, fs=fs)
+    for b, f_lo, f_hi in ((0.0, 255.0 - 0.5, 255.0 + 0.5), (10.0, 155.0 - 0.5, 155.0 + 0.5)):
+        x = simulate_effects(slow, F / sa, dt, x0_meas=0.0, band=b).x
+        f_slide = F[1000:i_dip] - k * x[1000:i_dip]
+        assert np.all(np.diff(x[1000:i_dip]) > 0)
+        assert f_lo - 1e-6 <= f_slide.min() and f_slide.max() <= f_hi + 1e-6, (b, f_slide.min(), f_slide.max())
+
+
+def test_stick_band_a_stem_at_rest_ignores_pressure_noise_within_the_band_and_keeps_its_slip_jump():
+    # planted truth: F_s = F_c = 150 N; the stem slides up after a force step and stops at the edge
+    # of its stick band.  Bounded noise (±4 N as a force) on the recorded pressure then keeps
+    # breaking the band-free model loose (it creeps on by up to 4 N / k), while with a 12 N band
+    # it does not move at all.  Then a reversal of more than the band sticks it: with F_s = 250 N
+    # the next breakaway upwards needs F_net > F_s + b.
+    k, fc, fv, sa, dt = 2e5, 150.0, 5000.0, 0.0445, 1e-3
+    rng = np.random.default_rng(3)
+    n = 3000
+    F = np.r_[np.full(100, 0.0), np.full(n - 100, 1000.0)] + rng.uniform(-4.0, 4.0, n) * (np.arange(n) >= 100)
+    rest = slice(1000, n)  # the slide (time constant F_v/k = 25 ms) is over
+    valve = EffectValve(k=k, fc=fc, fv=fv, sa=sa, dv=1e-4)
+    x0 = simulate_effects(valve, F / sa, dt, x0_meas=0.0).x
+    x1 = simulate_effects(valve, F / sa, dt, x0_meas=0.0, band=12.0).x
+    assert np.ptp(x0[rest]) > 1e-6  # creeps: µm
+    assert np.ptp(x1[rest]) == 0.0
+    assert abs(x1[-1] - (1000.0 - fc) / k) < 12.0 / k  # it stopped within the band of the force balance
+    # a reversal of more than the band, then a ramp back up: breakaway at F_s + b
+    fs, b = 250.0, 12.0
+    up = np.linspace(0.0, 600.0, 1200)
+    G = np.r_[np.full(100, 0.0), np.full(900, 1000.0), np.full(500, 1000.0 - 200.0), 800.0 + up]
+    xs = simulate_effects(valve.replace(fs=fs), G / sa, dt, x0_meas=0.0, band=b).x
+    j = _first_restart(xs, 1600)
+    f_break = G[j] - k * xs[j - 1]
+    assert fs + b - 1e-6 <= f_break <= fs + b + 0.5 + 1e-6
+
+
+def test_stick_band_zero_is_the_band_free_model_and_bad_bands_are_refused():
+    p = np.r_[np.full(100, 20e3), np.full(400, 60e3)] + np.random.default_rng(1).normal(0, 300.0, 500)
+    valve = EffectValve(k=2e5, fc=150.0, fv=5000.0, sa=0.0445, dv=1e-4, fs=200.0)
+    ref = simulate_effects(valve, p, 1e-3)
+    for b in (0.0, np.zeros(p.size)):
+        got = simulate_effects(valve, p, 1e-3, band=b)
+        assert np.array_equal(got.x, ref.x) and np.array_equal(got.v, ref.v)
+    for bad in (-1.0, np.full(3, 1.0), math.nan):
+        with pytest.raises(ModelConfigError):
+            simulate_effects(valve, p, 1e-3, band=bad)
