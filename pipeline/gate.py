@@ -275,6 +275,14 @@ def acf_standard_error(n: int, band: tuple[float, float] | None, *, weights: np.
     return float(np.sqrt(np.sum(rho**2) / n))
 
 
+def taper_inflation(n: int, period: float, max_lag: int) -> float:
+    """Factor on the ACF's standard error at the furthest peak checked: the taper-corrected
+    (unbiased) ACF at lag ``k`` averages ``N - k`` products, not ``N``, and the furthest peak
+    ``k T`` (``k <= 3``, within the ``max_lag`` lags computed) sets it: ``sqrt(N / (N - k T))``."""
+    k_last = min(3, int((max_lag + 1) / period - 0.25)) if period > 0 else 1
+    return np.sqrt(n / max(n - k_last * period, 1.0))
+
+
 def power_law_background(spec: np.ndarray, band: tuple[float, float]) -> np.ndarray:
     """Null spectrum for a band: a power law ``f^b`` fitted outside the band (Vaughan 2005).
 
@@ -476,10 +484,7 @@ def _gate(x: np.ndarray, *, fs: float, config: GateConfig, part: bool = False) -
         if not np.isfinite(tp):
             continue
         background = None if band is None else power_law_background(periodogram, band)
-        # the taper-corrected (unbiased) ACF at lag k has the variance of N - k products, not N:
-        # the furthest peak checked (k T, k <= 3, within the lags computed) sets the inflation
-        k_last = min(3, int((max_lag + 1) / tp - 0.25)) if tp > 0 else 1
-        inflation = np.sqrt(n / max(n - k_last * tp, 1.0))
+        inflation = taper_inflation(n, tp, max_lag)
         need = max(config.min_persistence,
                    config.acf_z * inflation * acf_standard_error(n, band, weights=weights, background=background))
         passed = (

@@ -129,8 +129,7 @@ def _gate_statistics(x, *, fs: float) -> tuple[float, float]:
         tp, reg, _, pers = g.regularity(g.acf(yy, max_lag=max_lag), n_total=n, min_periods=3)
         if not (np.isfinite(tp) and reg > 1):
             continue
-        infl = np.sqrt(n / max(n - min(3, int((max_lag + 1) / tp - 0.25)) * tp, 1.0))
-        z_acf = max(z_acf, pers / (infl * g.acf_standard_error(n, band, weights=w, background=bg)))
+        z_acf = max(z_acf, pers / (g.taper_inflation(n, tp, max_lag) * g.acf_standard_error(n, band, weights=w, background=bg)))
         if band is not None:
             z_env = max(z_env, g.envelope_test(spec * w, w**2 * bg, n, trim=int(np.ceil(tp)))[1])
     return z_acf, z_env
