@@ -127,6 +127,33 @@ def test_sticking_valve_found_and_linear_valve_not(seed):
     assert diagnose_window(pv, fs=1.0, op=op, sp=sp).stick_slip.episodes == 0
 
 
+def reversal_loop(valve, seed: int, *, n: int = 751):
+    """Slow PI (P-action on measurement noise 0.3: the OP reverses at about a third of its
+    samples) on the FOPDT of :func:`slow_loop`, set point moved up, down and up again: the
+    last ``n`` samples (pv, op, sp, stem)."""
+    steps = (SetpointStep(0.0, 50.0), SetpointStep(900.0, 56.0), SetpointStep(1150.0, 50.0), SetpointStep(1350.0, 55.0))
+    sc = LoopScenario(plant=FOPDT(1.5, 10.0, 3.0), controller=PIController(0.15, 0.01), setpoint_steps=steps,
+                      valve=valve, measurement_noise_std=0.3, load_noise_std=0.05, duration_s=1502.0)
+    sim = simulate_loop(sc, seed=seed)
+    return sim.pv[-n:], sim.op[-n:], sim.sp[-n:], sim.mv[-n:]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 5])
+def test_reversal_rule_valve_behind_a_noisy_pi_found_and_linear_valve_not(seed):
+    """Planted two-parameter valve (Choudhury et al. 2005, S = 3, J = 1.5) whose count restarts
+    at every OP reversal: found, by the reversal-rule stem (the planted model); the same loop
+    with a linear valve: no stick-slip."""
+    pv, op, sp, stem = reversal_loop(ChoudhuryStictionSpec(S=3.0, J=1.5), seed)
+    assert np.count_nonzero(np.diff(stem)) > 10  # the planted stem slips in the window
+    t = stiction_test(pv, op)
+    assert t is not None and t.sticking and t.rule == "reversal rule", t
+    assert stick_slip_episodes(pv, op, sp).episodes >= 1
+    pv, op, sp, _ = reversal_loop(None, seed)
+    t = stiction_test(pv, op)
+    assert t is not None and not t.sticking, t
+    assert stick_slip_episodes(pv, op, sp).episodes == 0
+
+
 def test_no_stick_slip_when_an_integrating_pv_turns_round():
     """Level-like PV (integral of OP - balance): while the OP ramps through the balance the
     PV is momentarily steady, then moves on; a linear (integrating) response, no stiction."""
