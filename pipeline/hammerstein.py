@@ -360,11 +360,15 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     refine_rounds : narrowed refinement passes after the first fine one (fs x 0.92-1.08,
         fd/fs +- 0.125, initial force +- 0.15 fs around the best).
     reversal_rule : also search stems of the reversal-rule model (:func:`reversal_stem`,
-        Choudhury et al. 2005, on the raw sampled OP) on the same grid (``S = fs + fd``,
-        ``J = fs - fd``, initial OP travel ``force0``), each candidate with its own likelihood;
-        the refinement stays in the family of the best coarse candidate.  The choice between
-        the two families is counted in the penalty: ``+ 2 ln 2`` (a prior of 1/2 on each
-        family, i.e. a Bonferroni doubling of the look).
+        Choudhury et al. 2005) on the same grid (``S = fs + fd``, ``J = fs - fd``; the stem's
+        start ``force0`` below the OP over -0.8 … 0.8 of the OP's travel, since a stem held by
+        the reversal rule can sit many ``S`` from the OP), each candidate with its own
+        likelihood.  The rule reads the raw sampled OP: it is a sampled-data model of the OP
+        the positioner receives once per scan, and smoothing would invent a filter that is in
+        neither the model nor the loop.  Each family's best coarse candidate is refined and the
+        better refined model kept; the choice between the two families is counted in the
+        penalty, ``+ 2 ln 2`` (a prior of 1/2 on each family, i.e. a Bonferroni doubling of the
+        look).
 
     Returns
     -------
@@ -424,38 +428,53 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     FS, FD, F0, FAM, stems, stems_w, fit = fit_grid(FS, FD, F0, FAM)  # row 0: fs = fd = 0, the linear valve
     if stems.shape[0] < 2:
         return None
-    i = 1 + int(np.argmin(fit.sse[1:]))
-    sse_lin, sse_st = float(fit.sse[0]), float(fit.sse[i])
+    sse_lin = float(fit.sse[0])
     if not sse_lin > 0:
         return None
     # finer passes around the best stiction candidate (the slip times hinge on fs and the
     # initial force together: the coarse grid can miss a slip by tens of samples), over the
     # best fit's pole and its two neighbours; same family, same parameters.  The first spans
     # fd/fs and the initial force whole, each further one (``refine_rounds``) narrows all three
-    # around the best so far
+    # around the best so far.  Each family's best coarse candidate is refined, and the family
+    # is chosen after refinement (a coarse grid can favour the family whose grid happens to
+    # lie nearer, not the better model)
     poles = _time_constants(n)
     spans = [(np.array([0.8, 0.9, 1.0, 1.12, 1.25]), None, None)] + [
         (np.array([0.92, 0.96, 1.0, 1.04, 1.08]), np.array([-0.125, 0.0, 0.125]), np.linspace(-0.15, 0.15, 7))
     ] * refine_rounds
-    for fs_mul, fd_off, f0_off in spans:
-        j = int(np.argmin(np.abs(poles - fit.pole[i])))
-        scale = FS[i] if FAM[i] == 0 else travel  # unit of the initial force (above)
-        r_d, r_0 = FD[i] / FS[i], F0[i] / scale
-        fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
-        f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
-        g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
-        g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
-        if not g.shape[1]:
-            break
-        fine = fit_grid(g[0], g[0] * g[1], g[2] * (g[0] if FAM[i] == 0 else travel), np.full(g.shape[1], FAM[i]),
-                        poles=poles[max(j - 1, 0):j + 2])
-        if not fine[-1].sse.size:
-            break
-        k = int(np.argmin(fine[-1].sse))
-        if not fine[-1].sse[k] < sse_st:
-            break
-        FS, FD, F0, FAM, stems, stems_w, fit = fine
-        i, sse_st = k, float(fit.sse[k])
+
+    def refine(state, i):
+        FS, FD, F0, FAM, stems, stems_w, fit = state
+        sse_st = float(fit.sse[i])
+        for fs_mul, fd_off, f0_off in spans:
+            j = int(np.argmin(np.abs(poles - fit.pole[i])))
+            scale = FS[i] if FAM[i] == 0 else travel  # unit of the initial force (above)
+            r_d, r_0 = FD[i] / FS[i], F0[i] / scale
+            fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
+            f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
+            g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
+            g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
+            if not g.shape[1]:
+                break
+            fine = fit_grid(g[0], g[0] * g[1], g[2] * (g[0] if FAM[i] == 0 else travel), np.full(g.shape[1], FAM[i]),
+                            poles=poles[max(j - 1, 0):j + 2])
+            if not fine[-1].sse.size:
+                break
+            k = int(np.argmin(fine[-1].sse))
+            if not fine[-1].sse[k] < sse_st:
+                break
+            state, i, sse_st = fine, k, float(fine[-1].sse[k])
+            FS, FD, F0, FAM, stems, stems_w, fit = state
+        return state, i, sse_st
+
+    best = None
+    for f in families:
+        rows = 1 + np.flatnonzero(FAM[1:] == f)
+        if rows.size:
+            cand = refine((FS, FD, F0, FAM, stems, stems_w, fit), int(rows[np.argmin(fit.sse[rows])]))
+            if best is None or cand[2] < best[2]:
+                best = cand
+    (FS, FD, F0, FAM, stems, stems_w, fit), i, sse_st = best
     r = _residual(pv_w, stems_w[i], float(fit.pole[i]), int(fit.dead_time[i]), D)
     r1 = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.99))
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)
