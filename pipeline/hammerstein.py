@@ -11,7 +11,9 @@ up with no OP step.  So fit two models of PV from OP on the window itself and co
   sample cannot answer the OP computed from it; at ``d = 0`` the OP's reaction to the PV's
   measurement noise would read as a response);
 * **Hammerstein**: the same, fed by the stem ``x = f_{fs,fd}(op)`` of a two-parameter
-  stiction model (static and dynamic friction, He et al. 2007; :func:`stiction_stem`).
+  stiction model: the force-balance form (static and dynamic friction, He et al. 2007;
+  :func:`stiction_stem`) or the reversal rule of Choudhury, Thornhill & Shah (2005;
+  :func:`reversal_stem`), whose stuck count restarts at every OP reversal.
 
 This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & Miller (2005,
 "Control loop performance assessment. 2. Hammerstein model approach for stiction diagnosis",
@@ -29,8 +31,9 @@ drops slow unmeasured loads).  The stiction model must then explain the PV bette
 linear model by a likelihood ratio that is significant after accounting for the residuals'
 autocorrelation (effective sample size ``n (1 - r1) / (1 + r1)``, Bartlett 1946, with ``r1``
 the lag-1 autocorrelation of the Hammerstein residual), penalised as BIC (``2 ln n_eff``,
-Schwarz 1978); the static friction searched is at least a tenth of the window's OP travel
-(``min_share``) and ``z`` OP noise deviations (a "deadband" within the OP's noise, or a small
+Schwarz 1978), plus ``2 ln 2`` for the choice between the two stem models; the static
+friction searched is at least a tenth of the window's OP travel (``min_share``) and ``z`` OP
+noise deviations (a "deadband" within the OP's noise, or a small
 share of the control action, is a model mismatch more often than a valve fault).  Defaults
 chosen on planted loops (``tests/bench/accuracy_sim.py``), not on plant data.
 
