@@ -86,11 +86,14 @@ def stiction_stem(op: np.ndarray, fs: np.ndarray, fd: np.ndarray, force0: np.nda
     -------
     (m, n) array of stem positions.
     """
-    op = np.ascontiguousarray(op, dtype=np.float64)
-    fs = np.ascontiguousarray(fs, dtype=np.float64)
-    fd = np.ascontiguousarray(fd, dtype=np.float64)
-    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), fs.shape).copy()
-    return _stems(op, fs, fd, ur)
+    return _stems(*_kernel_args(op, fs, fd, force0))
+
+
+def _kernel_args(op, a, b, force0) -> tuple[np.ndarray, ...]:
+    """The stem kernels' arguments: contiguous float arrays, ``force0`` one per candidate."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    f0 = np.broadcast_to(np.asarray(force0, dtype=np.float64), a.shape).copy()
+    return np.ascontiguousarray(op, dtype=np.float64), a, np.ascontiguousarray(b, dtype=np.float64), f0
 
 
 @compile_cached
@@ -148,11 +151,7 @@ def reversal_stem(op: np.ndarray, S: np.ndarray, J: np.ndarray, force0: np.ndarr
     -------
     (m, n) array of stem positions.
     """
-    op = np.ascontiguousarray(op, dtype=np.float64)
-    S = np.ascontiguousarray(S, dtype=np.float64)
-    J = np.ascontiguousarray(J, dtype=np.float64)
-    f0 = np.broadcast_to(np.asarray(force0, dtype=np.float64), S.shape).copy()
-    return _reversal_stems(op, S, J, f0)
+    return _reversal_stems(*_kernel_args(op, S, J, force0))
 
 
 @compile_cached
