@@ -11,7 +11,9 @@ up with no OP step.  So fit two models of PV from OP on the window itself and co
   sample cannot answer the OP computed from it; at ``d = 0`` the OP's reaction to the PV's
   measurement noise would read as a response);
 * **Hammerstein**: the same, fed by the stem ``x = f_{fs,fd}(op)`` of a two-parameter
-  stiction model (static and dynamic friction, He et al. 2007; :func:`stiction_stem`).
+  stiction model: the force-balance form (static and dynamic friction, He et al. 2007;
+  :func:`stiction_stem`) or the reversal rule of Choudhury, Thornhill & Shah (2005;
+  :func:`reversal_stem`), whose stuck count restarts at every OP reversal.
 
 This is the Hammerstein identification of Srinivasan, Rengaswamy, Narasimhan & Miller (2005,
 "Control loop performance assessment. 2. Hammerstein model approach for stiction diagnosis",
@@ -29,8 +31,10 @@ drops slow unmeasured loads).  The stiction model must then explain the PV bette
 linear model by a likelihood ratio that is significant after accounting for the residuals'
 autocorrelation (effective sample size ``n (1 - r1) / (1 + r1)``, Bartlett 1946, with ``r1``
 the lag-1 autocorrelation of the Hammerstein residual), penalised as BIC (``2 ln n_eff``,
-Schwarz 1978); the static friction searched is at least a tenth of the window's OP travel
-(``min_share``) and ``z`` OP noise deviations (a "deadband" within the OP's noise, or a small
+Schwarz 1978), plus ``ln n_eff`` for the choice between the two stem models (one more
+parameter); the static
+friction searched is at least a tenth of the window's OP travel (``min_share``) and ``z`` OP
+noise deviations (a "deadband" within the OP's noise, or a small
 share of the control action, is a model mismatch more often than a valve fault).  Defaults
 chosen on planted loops (``tests/bench/accuracy_sim.py``), not on plant data.
 
@@ -52,7 +56,7 @@ from scipy.signal import lfilter
 
 from .jit import compile_cached
 
-__all__ = ["HammersteinFit", "StictionTest", "stiction_stem", "hammerstein_fit", "stiction_test"]
+__all__ = ["HammersteinFit", "StictionTest", "stiction_stem", "reversal_stem", "hammerstein_fit", "stiction_test"]
 
 
 def stiction_stem(op: np.ndarray, fs: np.ndarray, fd: np.ndarray, force0: np.ndarray | float = 0.0) -> np.ndarray:
@@ -82,11 +86,14 @@ def stiction_stem(op: np.ndarray, fs: np.ndarray, fd: np.ndarray, force0: np.nda
     -------
     (m, n) array of stem positions.
     """
-    op = np.ascontiguousarray(op, dtype=np.float64)
-    fs = np.ascontiguousarray(fs, dtype=np.float64)
-    fd = np.ascontiguousarray(fd, dtype=np.float64)
-    ur = np.broadcast_to(np.asarray(force0, dtype=np.float64), fs.shape).copy()
-    return _stems(op, fs, fd, ur)
+    return _stems(*_kernel_args(op, fs, fd, force0))
+
+
+def _kernel_args(op, a, b, force0) -> tuple[np.ndarray, ...]:
+    """The stem kernels' arguments: contiguous float arrays, ``force0`` one per candidate."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    f0 = np.broadcast_to(np.asarray(force0, dtype=np.float64), a.shape).copy()
+    return np.ascontiguousarray(op, dtype=np.float64), a, np.ascontiguousarray(b, dtype=np.float64), f0
 
 
 @compile_cached
@@ -105,6 +112,89 @@ def _stems(op, fs, fd, ur):
                 x = x + u - s * fd[j]
                 u = s * fd[j]
             out[j, k] = x
+    return out
+
+
+def reversal_stem(op: np.ndarray, S: np.ndarray, J: np.ndarray, force0: np.ndarray | float = 0.0) -> np.ndarray:
+    """Stem positions of the two-parameter stiction model with the reversal rule, for several (S, J).
+
+    Choudhury, Thornhill & Shah (2005, "Modelling valve stiction", Control Eng. Practice
+    13:641–658, §4 and the flow chart of Fig. 7), step by step on the sampled OP ``x``: the OP's
+    direction is ``d = sign(x(k) - x(k-1))``; on a *reversal* (``d = -d_old``, both non-zero) the
+    valve sticks at ``x_ss = x(k-1)`` and needs ``|x - x_ss| > S`` (deadband + stickband) to move
+    again; when the OP *stops* (``d = 0``) a moving valve sticks there and, if the OP resumes the
+    same way, needs only ``|x - x_ss| > J`` (resuming the other way is a reversal); while stuck the
+    stem holds; while moving (and on breakaway) ``y = x - d (S - J) / 2``, so a breakaway after a
+    reversal jumps by ``J``.  Unlike :func:`stiction_stem` (He et al. 2007, the force-balance
+    form) the stuck count restarts at every OP reversal, so with a noisy OP the stem holds while
+    the OP travels many ``S``, and the stuck travel varies from one episode to the next.  The
+    force-balance ``(fs, fd)`` has the same deadband, jump and sliding lag as ``S = fs + fd``,
+    ``J = fs - fd``.  (The same rule as :class:`models.valves.ChoudhuryStiction`, which the
+    loop simulator uses; the pipeline keeps its own compiled kernel, as it must not import
+    the models.)
+
+    At the start the valve is at rest as :class:`models.valves.ChoudhuryStiction` after
+    ``reset`` (threshold ``S`` whichever way the OP moves first), with the stem ``force0`` below
+    the OP, ``y(0) = x(0) - force0`` (``force0 = 0``: the simulator's reset).  Held by the
+    reversal rule, a stem can sit many ``S`` away from the OP when the window starts (the OP
+    has travelled on in steps shorter than ``S``), so ``force0`` may be as large as the OP's
+    travel; it sets the size of the first slip (after it ``y = x - d (S - J) / 2`` whatever
+    ``y(0)`` was).
+
+    Parameters
+    ----------
+    op : 1-D controller output (the OP the valve receives, once per sample).
+    S, J : 1-D arrays of equal length ``m``, ``S >= 0``, ``J >= 0`` (OP units).
+    force0 : the OP's distance above the stem at the first sample, scalar or length ``m``.
+
+    Returns
+    -------
+    (m, n) array of stem positions.
+    """
+    return _reversal_stems(*_kernel_args(op, S, J, force0))
+
+
+@compile_cached
+def _reversal_stems(op, S, J, f0):
+    """Kernel of :func:`reversal_stem` (compiled): one candidate at a time, sample by sample."""
+    m, n = S.size, op.size
+    out = np.empty((m, n))
+    for j in range(m):
+        half = 0.5 * (S[j] - J[j])
+        d_old = 0
+        x_ss = op[0]
+        y = op[0] - f0[j]
+        stuck = True
+        thr = S[j]
+        resume = 0
+        out[j, 0] = y
+        for k in range(1, n):
+            x = op[k]
+            dx = x - op[k - 1]
+            d = 1 if dx > 0 else (-1 if dx < 0 else 0)
+            if d != d_old:
+                if d == 0:  # the OP stops: a moving valve sticks; the same way on needs only J
+                    if not stuck:
+                        stuck = True
+                        x_ss = op[k - 1]
+                        thr = J[j]
+                    resume = d_old
+                elif d_old == 0:  # the OP moves again: the other way is a reversal
+                    if d != resume:
+                        x_ss = op[k - 1]
+                        thr = S[j]
+                else:  # reversal: deadband + stickband from the reversal point
+                    stuck = True
+                    x_ss = op[k - 1]
+                    thr = S[j]
+            if stuck:
+                if d != 0 and abs(x - x_ss) > thr:
+                    stuck = False
+                    y = x - d * half
+            else:
+                y = x - d * half
+            d_old = d
+            out[j, k] = y
     return out
 
 
@@ -227,7 +317,8 @@ class StictionTest:
     likelihood ratio and ``penalty`` what it had to exceed; ``slips`` the fitted stem's moves
     after a stuck phase, ``stuck_fraction`` of the window the fitted stem held while the OP
     moved; ``pole`` and ``dead_time`` (samples) the fitted lag of the stiction model; ``stem``
-    the fitted stem (OP units).
+    the fitted stem (OP units); ``rule`` its stem model, ``"force balance"`` (:func:`stiction_stem`)
+    or ``"reversal rule"`` (:func:`reversal_stem`).
     """
 
     sticking: bool
@@ -242,6 +333,7 @@ class StictionTest:
     pole: float = 0.0
     dead_time: int = 0
     stem: np.ndarray = field(default=None, repr=False, compare=False)
+    rule: str = "force balance"
 
 
 def _noise_std(x: np.ndarray) -> float:
@@ -251,7 +343,8 @@ def _noise_std(x: np.ndarray) -> float:
 
 def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: float = 0.1,
                   max_dead_time: int | None = None, min_dead_time: int = 1,
-                  highpass: int | None = None, refine_rounds: int = 1) -> StictionTest | None:
+                  highpass: int | None = None, refine_rounds: int = 1,
+                  reversal_rule: bool = True) -> StictionTest | None:
     """Is the PV explained better by a sticking valve than by a linear one?  (Module docstring.)
 
     Parameters
@@ -269,6 +362,17 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
         fit (default an eighth of the window; 0: none).
     refine_rounds : narrowed refinement passes after the first fine one (fs x 0.92-1.08,
         fd/fs +- 0.125, initial force +- 0.15 fs around the best).
+    reversal_rule : also search stems of the reversal-rule model (:func:`reversal_stem`,
+        Choudhury et al. 2005) on the same grid (``S = fs + fd``, ``J = fs - fd``; the stem's
+        start ``force0`` below the OP over -0.8 … 0.8 of the OP's travel, since a stem held by
+        the reversal rule can sit many ``S`` from the OP), each candidate with its own
+        likelihood.  The rule reads the raw sampled OP: it is a sampled-data model of the OP
+        the positioner receives once per scan, and smoothing would invent a filter that is in
+        neither the model nor the loop.  Each family's best coarse candidate is refined and the
+        better refined model kept; the choice between the two families is counted in the
+        penalty as one more parameter, ``+ ln n_eff`` (BIC; on the planted windows the
+        alternative, ``+ 2 ln 2``, a prior of 1/2 on each family or a Bonferroni doubling of the
+        look, found more but raised more false alarms than main: ACCURACY.md, issue 3, session 7).
 
     Returns
     -------
@@ -288,16 +392,32 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     fs = fs[fs > z * s_op]
     if fs.size == 0:
         return None
-    # static friction x dynamic share fd/fs x initial net force / fs
-    g = np.array(np.meshgrid(fs, [0.0, 0.5, 1.0], [-0.75, 0.0, 0.75], indexing="ij")).reshape(3, -1)
-    FS, FD, F0 = np.r_[0.0, g[0]], np.r_[0.0, g[0] * g[1]], np.r_[0.0, g[0] * g[2]]
+    # static friction x dynamic share fd/fs x initial net force / fs (force balance: |force0| <= fs)
+    # or initial distance of the stem from the OP / OP travel (reversal rule: the stem may have
+    # been held while the OP travelled many S)
+    families = (0, 1) if reversal_rule else (0,)
+    f0_grid = ([-0.75, 0.0, 0.75], [-0.8, -0.4, 0.0, 0.4, 0.8])
+    g = np.concatenate([np.array(np.meshgrid(fs, [0.0, 0.5, 1.0], f0_grid[f], [f], indexing="ij")).reshape(4, -1)
+                        for f in families], axis=1)
+    FS, FD, FAM = np.r_[0.0, g[0]], np.r_[0.0, g[0] * g[1]], np.r_[0, g[3]].astype(int)
+    F0 = np.r_[0.0, g[2] * np.where(g[3] == 0, g[0], travel)]
     h = L // 2 if L > 1 else 0
 
-    def fit_grid(FS, FD, F0, poles=None):
-        stems = stiction_stem(op, FS, FD, F0)
+    def fit_grid(FS, FD, F0, FAM, poles=None):
+        stems = np.empty((FS.size, n))
+        he = FAM == 0
+        stems[he] = stiction_stem(op, FS[he], FD[he], F0[he])
+        if not he.all():
+            stems[~he] = reversal_stem(op, FS[~he] + FD[~he], FS[~he] - FD[~he], F0[~he])
         moves = np.ptp(stems, axis=1) > 0  # a stem that never moves predicts nothing
         moves[0] |= FS[0] == 0
-        FS, FD, F0, stems = FS[moves], FD[moves], F0[moves], stems[moves]
+        if not he.all():  # reversal-rule stems can coincide (e.g. the same single slip): one each
+            rev = np.flatnonzero(moves & ~he)
+            keep = np.zeros(FS.size, dtype=bool)
+            if rev.size:
+                keep[rev[np.unique(stems[rev], axis=0, return_index=True)[1]]] = True
+            moves &= he | keep
+        FS, FD, F0, FAM, stems = FS[moves], FD[moves], F0[moves], FAM[moves], stems[moves]
         # unmeasured slow disturbances: the same high-pass (less an L-sample moving average) on
         # the PV and on every stem keeps the linear relation and drops what the OP did not cause
         # (L/2 samples at each end, where the average is one-sided, are left out)
@@ -306,55 +426,75 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
         else:
             stems_w = stems
         fit = hammerstein_fit(pv_w, stems_w, max_dead_time=D, min_dead_time=min_dead_time, poles=poles)
-        return FS, FD, F0, stems, stems_w, fit
+        return FS, FD, F0, FAM, stems, stems_w, fit
 
     pv_w = (pv - uniform_filter1d(pv, L, mode="nearest"))[h:n - h] if L > 1 else pv
-    FS, FD, F0, stems, stems_w, fit = fit_grid(FS, FD, F0)  # row 0: fs = fd = 0, the linear valve
+    FS, FD, F0, FAM, stems, stems_w, fit = fit_grid(FS, FD, F0, FAM)  # row 0: fs = fd = 0, the linear valve
     if stems.shape[0] < 2:
         return None
-    i = 1 + int(np.argmin(fit.sse[1:]))
-    sse_lin, sse_st = float(fit.sse[0]), float(fit.sse[i])
+    sse_lin = float(fit.sse[0])
     if not sse_lin > 0:
         return None
     # finer passes around the best stiction candidate (the slip times hinge on fs and the
     # initial force together: the coarse grid can miss a slip by tens of samples), over the
     # best fit's pole and its two neighbours; same family, same parameters.  The first spans
     # fd/fs and the initial force whole, each further one (``refine_rounds``) narrows all three
-    # around the best so far
+    # around the best so far.  Each family's best coarse candidate is refined, and the family
+    # is chosen after refinement (a coarse grid can favour the family whose grid happens to
+    # lie nearer, not the better model)
     poles = _time_constants(n)
     spans = [(np.array([0.8, 0.9, 1.0, 1.12, 1.25]), None, None)] + [
         (np.array([0.92, 0.96, 1.0, 1.04, 1.08]), np.array([-0.125, 0.0, 0.125]), np.linspace(-0.15, 0.15, 7))
     ] * refine_rounds
-    for fs_mul, fd_off, f0_off in spans:
-        j = int(np.argmin(np.abs(poles - fit.pole[i])))
-        r_d, r_0 = FD[i] / FS[i], F0[i] / FS[i]
-        fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
-        f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
-        g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
-        g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
-        if not g.shape[1]:
-            break
-        fine = fit_grid(g[0], g[0] * g[1], g[0] * g[2], poles=poles[max(j - 1, 0):j + 2])
-        k = int(np.argmin(fine[-1].sse))
-        if not fine[-1].sse[k] < sse_st:
-            break
-        FS, FD, F0, stems, stems_w, fit = fine
-        i, sse_st = k, float(fit.sse[k])
+
+    def refine(state, i):
+        FS, FD, F0, FAM, stems, stems_w, fit = state
+        sse_st = float(fit.sse[i])
+        for fs_mul, fd_off, f0_off in spans:
+            j = int(np.argmin(np.abs(poles - fit.pole[i])))
+            scale = FS[i] if FAM[i] == 0 else travel  # unit of the initial force (above)
+            r_d, r_0 = FD[i] / FS[i], F0[i] / scale
+            fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
+            f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
+            g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
+            g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
+            if not g.shape[1]:
+                break
+            fine = fit_grid(g[0], g[0] * g[1], g[2] * (g[0] if FAM[i] == 0 else travel), np.full(g.shape[1], FAM[i]),
+                            poles=poles[max(j - 1, 0):j + 2])
+            if not fine[-1].sse.size:
+                break
+            k = int(np.argmin(fine[-1].sse))
+            if not fine[-1].sse[k] < sse_st:
+                break
+            state, i, sse_st = fine, k, float(fine[-1].sse[k])
+            FS, FD, F0, FAM, stems, stems_w, fit = state
+        return state, i, sse_st
+
+    best = None
+    for f in families:
+        rows = 1 + np.flatnonzero(FAM[1:] == f)
+        if rows.size:
+            cand = refine((FS, FD, F0, FAM, stems, stems_w, fit), int(rows[np.argmin(fit.sse[rows])]))
+            if best is None or cand[2] < best[2]:
+                best = cand
+    (FS, FD, F0, FAM, stems, stems_w, fit), i, sse_st = best
     r = _residual(pv_w, stems_w[i], float(fit.pole[i]), int(fit.dead_time[i]), D)
     r1 = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.99))
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)
     ratio = max(sse_st, 1e-300) / sse_lin
     stat = float(n_eff * np.log(1.0 / ratio))
-    penalty = float(2.0 * np.log(max(n_eff, 2.0)))
+    penalty = float((1.0 + 0.5 * (len(families) - 1)) * 2.0 * np.log(max(n_eff, 2.0)))
     sticking = stat > penalty
     held = np.diff(stems[i]) == 0
     slips = int(np.count_nonzero(held[:-1] & ~held[1:]))
     frac = float(np.mean(held & (np.diff(op) != 0)))
+    rule = "reversal rule" if FAM[i] else "force balance"
     if sticking:
-        reason = (f"valve does not follow the OP (stiction or deadband): a stiction model (static friction "
+        reason = (f"valve does not follow the OP (stiction or deadband): a stiction model ({rule}, static friction "
                   f"{FS[i]:.3g}, dynamic {FD[i]:.3g} OP units) explains the PV with {ratio:.0%} of a linear "
                   f"model's error")
     else:
         reason = f"the PV follows the OP (a stiction model leaves {ratio:.0%} of a linear model's error)"
     return StictionTest(bool(sticking), float(FS[i]), float(FD[i]), ratio, stat, penalty, slips, frac, reason,
-                        float(fit.pole[i]), int(fit.dead_time[i]), stems[i])
+                        float(fit.pole[i]), int(fit.dead_time[i]), stems[i], rule)

@@ -6,9 +6,9 @@ import pytest
 from scipy.signal import lfilter
 
 from models.loop import FOPDT, LoopScenario, PIController, SetpointStep, Sinusoid, simulate_loop
-from models.valves import KarnoppLoopSpec
+from models.valves import ChoudhuryStiction, ChoudhuryStictionSpec, KarnoppLoopSpec
 from pipeline.diagnosis import diagnose_window
-from pipeline.hammerstein import _time_constants, hammerstein_fit, stiction_stem, stiction_test
+from pipeline.hammerstein import _time_constants, hammerstein_fit, reversal_stem, stiction_stem, stiction_test
 from pipeline.stickslip import stick_slip_episodes
 
 
@@ -21,6 +21,38 @@ def test_stiction_stem_by_hand():
     # a net force at the start: the stem sits 0.8 below the OP and breaks away sooner
     x = stiction_stem(op, np.array([1.0]), np.array([0.5]), np.array([0.8]))
     np.testing.assert_allclose(x[0], [-0.8, 0.0, 0.0, 0.7, 0.7, 1.3, 1.3, 0.5])
+
+
+def test_reversal_stem_by_hand():
+    """Choudhury, Thornhill & Shah (2005), Fig. 7, S = 1, J = 0.5: stuck until the OP has moved
+    more than S from the reversal point, then y = x - d (S - J) / 2."""
+    op = np.array([0.0, 0.5, 1.2, 1.5, 1.3, 1.0, 0.2, 0.0])
+    y = reversal_stem(op, np.array([1.0]), np.array([0.5]))[0]
+    np.testing.assert_allclose(y, [0, 0, 0.95, 1.25, 1.25, 1.25, 0.45, 0.25])
+    # the count restarts at each reversal: a ramp of 0.1 per sample with +-0.15 of alternating
+    # noise travels 5 S and the stem holds; the force-balance stem (He et al. 2007) moves
+    op = 0.1 * np.arange(51) + 0.15 * (-1.0) ** np.arange(51)
+    assert np.ptp(reversal_stem(op, np.array([1.0]), np.array([0.5]))[0]) == 0
+    assert np.ptp(stiction_stem(op, np.array([0.75]), np.array([0.25]))[0]) > 3
+    # held 3 below the OP at the start: the first slip (OP 1.2 > S from its start) is 3.95
+    y = reversal_stem(np.array([0.0, 0.5, 1.2, 1.5]), np.array([1.0]), np.array([0.5]), np.array([3.0]))[0]
+    np.testing.assert_allclose(y, [-3.0, -3.0, 0.95, 1.25])
+
+
+def test_reversal_stem_is_the_simulators_two_parameter_valve():
+    """The pipeline's kernel and models.valves.ChoudhuryStiction (the loop simulator's valve, an
+    independent implementation of the same flow chart) agree on random OPs with pauses."""
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        op = np.cumsum(rng.standard_normal(300)) * rng.uniform(0.1, 2.0)
+        pause = rng.random(300) < 0.2
+        for k in np.flatnonzero(pause[1:]) + 1:
+            op[k] = op[k - 1]
+        S = rng.uniform(0.0, 3.0)
+        J = rng.uniform(0.0, 2.0) * S
+        valve = ChoudhuryStiction(S, J)
+        expected = [valve.update(o, 1.0) for o in op]
+        np.testing.assert_allclose(reversal_stem(op, np.array([S]), np.array([J]))[0], expected)
 
 
 def test_hammerstein_fit_recovers_a_planted_first_order_lag_with_dead_time():
@@ -93,6 +125,34 @@ def test_sticking_valve_found_and_linear_valve_not(seed):
     t = stiction_test(pv, op)
     assert t is not None and not t.sticking, t
     assert diagnose_window(pv, fs=1.0, op=op, sp=sp).stick_slip.episodes == 0
+
+
+def reversal_loop(valve, seed: int, *, n: int = 751):
+    """Slow PI (P-action on measurement noise 0.3: the OP reverses at about a third of its
+    samples) on the FOPDT of :func:`slow_loop`, set point moved up, down and up again: the
+    last ``n`` samples (pv, op, sp, stem)."""
+    steps = (SetpointStep(0.0, 50.0), SetpointStep(900.0, 56.0), SetpointStep(1150.0, 50.0), SetpointStep(1350.0, 55.0))
+    sc = LoopScenario(plant=FOPDT(1.5, 10.0, 3.0), controller=PIController(0.15, 0.01), setpoint_steps=steps,
+                      valve=valve, measurement_noise_std=0.3, load_noise_std=0.05, duration_s=1502.0)
+    sim = simulate_loop(sc, seed=seed)
+    return sim.pv[-n:], sim.op[-n:], sim.sp[-n:], sim.mv[-n:]
+
+
+@pytest.mark.parametrize("seed, rule", [(1, "reversal rule"), (2, None), (5, "reversal rule")])
+def test_reversal_rule_valve_behind_a_noisy_pi_found_and_linear_valve_not(seed, rule):
+    """Planted two-parameter valve (Choudhury et al. 2005, S = 3, J = 1.5) whose count restarts
+    at every OP reversal: found, on seeds 1 and 5 by the reversal-rule stem (the planted model;
+    on seed 2 a force-balance deadband fits the PV better); the same loop with a linear valve:
+    no stick-slip."""
+    pv, op, sp, stem = reversal_loop(ChoudhuryStictionSpec(S=3.0, J=1.5), seed)
+    assert np.count_nonzero(np.diff(stem)) > 10  # the planted stem slips in the window
+    t = stiction_test(pv, op)
+    assert t is not None and t.sticking and t.rule == (rule or t.rule), t
+    assert stick_slip_episodes(pv, op, sp).episodes >= 1
+    pv, op, sp, _ = reversal_loop(None, seed)
+    t = stiction_test(pv, op)
+    assert t is not None and not t.sticking, t
+    assert stick_slip_episodes(pv, op, sp).episodes == 0
 
 
 def test_no_stick_slip_when_an_integrating_pv_turns_round():

@@ -661,12 +661,14 @@ def stick_benchmark(n_per_case: int, seed: int, window: int = 751):
 
 
 @pytest.mark.bench
+@pytest.mark.timeout(1800)  # two stem families: ~2x main's search (over the suite's 300 s)
 def test_stick_slip_planted():
     _planted_report("stick-slip planted", stick_benchmark, env="LOOPWATCH_STICK_CASES", default=60,
                     figure="episodes found in")
 
 
 @pytest.mark.bench
+@pytest.mark.timeout(1800)  # two stem families: ~2x main's search (over the suite's 300 s)
 def test_stick_slip_planted_long():
     """The planted stick-slip cases on 4096-sample windows (the monitor's default length; the
     same loops, 2-4 set-point moves spread over the window): a window this long is tested in
