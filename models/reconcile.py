@@ -561,8 +561,8 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     acts at rest only, which makes the tenth-DV start moot), and eq. (2) as written without a
     band (a valve whose slides end at DV, as the paper's model, is fitted by its own rule).  The
     rule is one held choice (``nb``, the band in noise standard deviations, with ``dv``),
-    counted as one parameter in the penalty as DV was.  ``rule``: the stick rule (``nb``, ``dv``)
-    once the search has chosen it at its first friction fit; only that rule is then tried."""
+    counted as one parameter in the penalty as DV was.  ``rule``: the effect's stick rule (``nb``,
+    ``dv``) once the search has chosen it at the effect's first fit; only that rule is then tried."""
     fc, k = vals["fc"], vals["k"]
     vt = float(np.median([r.speed_typ for r in recs]))
     if effect in ("slip_jump", "stribeck"):
@@ -885,7 +885,7 @@ def reconcile(
     message = ""
     refits = 0
     carry: dict[str, dict[str, float]] = {}  # candidates' fits kept as starts across a refit
-    friction_rule: dict[str, float] = {}  # the stick rule of F_s > F_c, once chosen (see fit_candidate)
+    friction_rule: dict[str, dict[str, float]] = {}  # each friction effect's stick rule, once chosen (fit_candidate)
     n_train = sum(int(r.train.sum()) for r in recs)
 
     def fold_sse(v: dict[str, float], fold: str = "train", res: list[np.ndarray] | None = None) -> float:
@@ -907,7 +907,7 @@ def reconcile(
         # output error is steep in k and F_s, and the start nearest in error is often the
         # baseline's compromise)
         shorts = []
-        for g in _grid(eff, base, recs, cfg, dv, friction_rule) + extra:
+        for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra:
             v = dict(base)
             v.update(g)
             if v["fc"] < 0:
@@ -919,10 +919,10 @@ def reconcile(
         rules = {f.vals.get("nb") for f in shorts}
         best = [next(f for f in shorts if f.vals.get("nb") == r) for r in rules] if len(rules) > 1 else shorts[:2]
         fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in best), key=lambda f: f.sse_train)
-        if len(rules) > 1 and cfg.stick_band > 0 and not friction_rule:
-            # the stick rule is chosen once, at the search's first friction fit (training blocks),
-            # and held by every later friction fit: half the starts, one refinement per rule less
-            friction_rule.update(nb=fit.vals["nb"], dv=fit.vals["dv"])
+        if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
+            # each friction effect chooses its stick rule once, at its first fit (training blocks),
+            # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
+            friction_rule[eff] = {"nb": fit.vals["nb"], "dv": fit.vals["dv"]}
         fit_sse = fold_sse(fit.vals, fold)
         if fit_sse > base_sse:  # the fit got lost: the extension contains the current model
             v = dict(base)
@@ -947,7 +947,7 @@ def reconcile(
                 vb = {**base_rule, **vb}  # a friction effect swapped out takes its stick rule with it
                 vfree = tuple(n for n in free if n not in _effect_names(a)) + _effect_names(alt) + names
                 vs = [_fit({**vb, **g}, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016)
-                      for g in _grid(alt, vb, recs, cfg, dv, friction_rule) if {**vb, **g}["fc"] >= 0]
+                      for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt)) if {**vb, **g}["fc"] >= 0]
                 if not vs:
                     continue
                 vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
