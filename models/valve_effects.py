@@ -274,8 +274,12 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
       (``s·F_net < F_c − b``); otherwise it stops *free*: it moves on in the same direction
       against the sliding friction at zero speed (``F_c``; ``F_s`` with Stribeck) and becomes
       stuck only once the force falls below ``F_c − b`` in that direction;
-    * a stem at rest breaks away (third line) only when ``|F_net|`` exceeds its holding
-      friction by more than ``b``.
+    * a stem stopped free moves on (third line) only when ``F_net`` exceeds the sliding
+      friction at zero speed by more than ``b`` in its direction; a *stuck* stem (held after a
+      reversal of more than the band, or at the start) breaks away at its holding friction
+      ``F_s``, as in eq. (2): the two thresholds ``F_c − b`` (stick) and ``F_s`` (break away)
+      are a hysteresis of at least ``b``, so noise within the band cannot break it loose, and
+      the breakaway is not delayed by ``b/Ḟ`` (which a slip jump's dead time would absorb).
 
     Returns stem position x, velocity v and reading y.
     """
@@ -304,7 +308,9 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                         free = 0.0
                     elif free * f_net > 0.0:  # stopped free: it moves on against sliding friction
                         fr = fs0
-                thr = fr + b
+                # the band guards the edge a stem stopped *free* at; a stuck stem got there by a
+                # reversal of more than the band and breaks away at its holding friction
+                thr = fr + b if free != 0.0 else fr
                 if abs(f_net) <= thr:  # stick (2nd line of eq. 2)
                     v = 0.0
                 else:  # breakaway (3rd line), for the part of the step after the crossing
@@ -394,9 +400,10 @@ def simulate_effects(
     noise is not a force on the real stem, yet with ``F_s = F_c`` it keeps breaking a simulated
     stem loose at rest, and it stops a simulated stem that creeps on where a real stem slides
     until the force reverses it.  With a band a moving stem sticks only when the net force
-    would reverse it by more than ``b``, a stem at rest breaks away only when
-    ``|S_a·p − k·x|`` exceeds its holding friction by more than ``b``, and the DV test of
-    eq. (2) applies to a stem at rest only (see :func:`_karnopp_kernel`).  0 (the default) is
+    would reverse it by more than ``b``, a stem stopped within the band moves on only when
+    ``S_a·p − k·x`` exceeds the sliding friction by more than ``b``, a stuck stem breaks away at
+    ``F_s`` (it got stuck at least ``b`` inside its friction band), and the DV test of eq. (2)
+    applies to a stem at rest only (see :func:`_karnopp_kernel`).  0 (the default) is
     eq. (2) as above, bit for bit."""
     p = np.ascontiguousarray(p, dtype=float)
     if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):

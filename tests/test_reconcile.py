@@ -122,8 +122,10 @@ def test_lag_named_first_is_swapped_for_the_hidden_dead_time_beside_a_deadband()
     assert db.params["theta_s"] == pytest.approx(0.03, rel=0.2)
     assert db.params["deadband_m"] == pytest.approx(0.5e-3, rel=0.2)
     assert db.heldout_rmse < 1.1 * r.noise_floor
-    # with the two-fold cross-fit both planted effects are named (one fold alone: p 0.003 > 0.0025)
-    assert r.effects == ["dead_time", "deadband"] and db.cross_fitted
+    # with the two-fold cross-fit both planted effects are named (one fold alone: p 0.003 > 0.0025);
+    # round 2 may reach that model from either side (the deadband with the lag swapped for the dead
+    # time, or the dead time with the lag swapped for the deadband), so the order is not planted
+    assert sorted(r.effects) == ["dead_time", "deadband"] and db.cross_fitted
 
 
 @pytest.mark.slow
