@@ -72,6 +72,7 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs, savgol_filter
+from threadpoolctl import threadpool_limits
 
 from .errors import IdentificationError, ModelConfigError
 from .identification import ValveData, _runs, check_record, noise_std, sg_derivatives, slow_velocity
@@ -828,7 +829,17 @@ def reconcile(
     config: ReconcileConfig | None = None,
 ) -> Reconciliation:
     """Run the discrepancy workflow on a record (and optionally a signature record, used as a
-    second record in the fit and the held-out scoring).  See the module docstring."""
+    second record in the fit and the held-out scoring).  See the module docstring.
+
+    BLAS runs on one thread meanwhile: the fits' linear algebra (SVDs of subsampled
+    Jacobians) gains no wall time from a second thread, which only takes a core from the rest
+    of the machine (a 60 s bench record: 43.7 s wall and 79.8 s CPU with two OpenBLAS threads,
+    41.5 s both with one; BENCHMARKS.md, issue 8 session 7)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _reconcile(data, signature, config)
+
+
+def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileConfig | None) -> Reconciliation:
     cfg = config or ReconcileConfig()
     # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
     def blk(d: ValveData) -> float:
