@@ -397,10 +397,15 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     # been held while the OP travelled many S)
     families = (0, 1) if reversal_rule else (0,)
     f0_grid = ([-0.75, 0.0, 0.75], [-0.8, -0.4, 0.0, 0.4, 0.8])
+
+    def f0_unit(fam, fs):
+        """Unit of the initial force: the static friction (force balance) or the OP's travel (reversal rule)."""
+        return np.where(fam == 0, fs, travel)
+
     g = np.concatenate([np.array(np.meshgrid(fs, [0.0, 0.5, 1.0], f0_grid[f], [f], indexing="ij")).reshape(4, -1)
                         for f in families], axis=1)
     FS, FD, FAM = np.r_[0.0, g[0]], np.r_[0.0, g[0] * g[1]], np.r_[0, g[3]].astype(int)
-    F0 = np.r_[0.0, g[2] * np.where(g[3] == 0, g[0], travel)]
+    F0 = np.r_[0.0, g[2] * f0_unit(g[3], g[0])]
     h = L // 2 if L > 1 else 0
 
     def fit_grid(FS, FD, F0, FAM, poles=None):
@@ -452,15 +457,14 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
         sse_st = float(fit.sse[i])
         for fs_mul, fd_off, f0_off in spans:
             j = int(np.argmin(np.abs(poles - fit.pole[i])))
-            scale = FS[i] if FAM[i] == 0 else travel  # unit of the initial force (above)
-            r_d, r_0 = FD[i] / FS[i], F0[i] / scale
+            r_d, r_0 = FD[i] / FS[i], F0[i] / f0_unit(FAM[i], FS[i])
             fd_sh = np.array([0.0, 0.25, 0.5, 0.75, 1.0]) if fd_off is None else np.unique(np.clip(r_d + fd_off, 0, 1))
             f0_sh = np.linspace(-0.9, 0.9, 7) if f0_off is None else np.clip(r_0 + f0_off, -1, 1)
             g = np.array(np.meshgrid(FS[i] * fs_mul, fd_sh, f0_sh, indexing="ij")).reshape(3, -1)
             g = g[:, (g[0] > z * s_op) & (g[0] >= min_share * travel)]
             if not g.shape[1]:
                 break
-            fine = fit_grid(g[0], g[0] * g[1], g[2] * (g[0] if FAM[i] == 0 else travel), np.full(g.shape[1], FAM[i]),
+            fine = fit_grid(g[0], g[0] * g[1], g[2] * f0_unit(FAM[i], g[0]), np.full(g.shape[1], FAM[i]),
                             poles=poles[max(j - 1, 0):j + 2])
             if not fine[-1].sse.size:
                 break
@@ -484,7 +488,7 @@ def stiction_test(pv: np.ndarray, op: np.ndarray, *, z: float = 4.0, min_share: 
     n_eff = fit.n * (1.0 - r1) / (1.0 + r1)
     ratio = max(sse_st, 1e-300) / sse_lin
     stat = float(n_eff * np.log(1.0 / ratio))
-    penalty = float((1.0 + 0.5 * (len(families) - 1)) * 2.0 * np.log(max(n_eff, 2.0)))
+    penalty = float((1 + len(families)) * np.log(max(n_eff, 2.0)))  # BIC: fs, fd and the family choice
     sticking = stat > penalty
     held = np.diff(stems[i]) == 0
     slips = int(np.count_nonzero(held[:-1] & ~held[1:]))
