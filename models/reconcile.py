@@ -906,24 +906,25 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
     def train_sse(v: dict[str, float], res: list[np.ndarray] | None = None) -> float:
         return fold_sse(v, "train", res)
 
-    def fit_candidate(eff: str, base: dict[str, float], base_sse: float, fold: str,
-                      extra: list[dict[str, float]]) -> tuple[_Fit, str, str, tuple[str, ...]]:
-        """``eff`` added to the current model ``base`` (fitted on ``fold``, its SSE there
-        ``base_sse``), every choice made on ``fold`` only: the fit, its start, and whether an
-        accepted effect is swapped for an alternative.  Returns (fit, swapped effect, its
-        alternative, free parameters)."""
+    def plain_fit(eff: str, base: dict[str, float], base_sse: float, fold: str,
+                  extra: list[dict[str, float]], memo: dict) -> tuple[_Fit, float]:
+        """``eff`` added to the current model ``base`` (its SSE on ``fold`` ``base_sse``) and fitted
+        on ``fold`` from the multi-start; (fit, its SSE on ``fold``), kept in ``memo``."""
+        if ("plain", eff) in memo:
+            return memo["plain", eff]
         names = _effect_names(eff)
         # multi-start: every start gets a short coarse fit, the two best are refined (the
         # sum of squares at a start does not tell which basin the fit ends in: a hysteretic
         # output error is steep in k and F_s, and the start nearest in error is often the
         # baseline's compromise)
-        shorts = []
+        starts = []
         for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra:
             v = dict(base)
             v.update(g)
             if v["fc"] < 0:
                 continue
-            shorts.append(_fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016))
+            starts.append(v)
+        shorts = [_fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016) for v in starts]
         shorts.sort(key=lambda f: f.sse_train)
         # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
         # refined: a short fit does not tell which rule fits the record once converged
@@ -941,7 +942,59 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
             if eff == "stribeck":
                 v["vs"] = float(np.median([r.speed_typ for r in recs]))
             fit = _Fit(v, base_sse)
-            fit_sse = fold_sse(v, fold) if accepted else base_sse  # only the swaps below use it
+            fit_sse = fold_sse(v, fold) if accepted else base_sse  # only the swaps use it
+        memo["plain", eff] = fit, fit_sse
+        return fit, fit_sse
+
+    def swap_fit(eff: str, a: str, alt: str, base: dict[str, float], base_sse: float, fold: str,
+                 todo: list[str], memo: dict) -> tuple[_Fit, float, tuple[str, ...]] | None:
+        """The model with ``eff`` added and the accepted effect ``a`` swapped for ``alt``, fitted on
+        ``fold``: (fit, its SSE on ``fold``, free parameters), or None without a valid start.  The
+        same model is reached from the candidate ``alt`` with ``a`` swapped for ``eff``: it is
+        fitted once per round and fold (``memo``), started from both candidates' own fits (each
+        with ``a`` taken out and the other's parameters put in).  An ``alt`` that is no candidate
+        of this round (a friction effect exclusive with ``a``) starts from its grid instead."""
+        keep = [e for e in accepted if e != a]
+        key = ("swap", frozenset(keep + [alt, eff]))
+        if key in memo:
+            return memo[key]
+        names = _effect_names(eff)
+        vfree = tuple(n for n in free if n not in _effect_names(a)) + _effect_names(alt) + names
+
+        def without_a(vals: dict[str, float]) -> dict[str, float]:
+            vb = {n: x for n, x in vals.items() if n not in _effect_names(a)
+                  and not (n in ("dv", "nb") and a in ("slip_jump", "stribeck"))}
+            return {**base_rule, **vb}  # a friction effect swapped out takes its stick rule with it
+
+        def own(vals: dict[str, float], e: str) -> dict[str, float]:  # effect e's parameters (and stick rule)
+            rule = ("dv", "nb") if e in ("slip_jump", "stribeck") else ()
+            return {n: x for n, x in vals.items() if n in _effect_names(e) or n in rule}
+
+        fit_e = plain_fit(eff, base, base_sse, fold, [], memo)[0]
+        if alt in todo:
+            fit_alt = plain_fit(alt, base, base_sse, fold, [], memo)[0]
+            starts = [{**without_a(fit_e.vals), **own(fit_alt.vals, alt)},
+                      {**without_a(fit_alt.vals), **own(fit_e.vals, eff)}]
+        else:
+            vb = without_a(fit_e.vals)
+            starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt))]
+        vs = [_fit(s, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016)
+              for s in starts if s["fc"] >= 0]
+        out = None
+        if vs:
+            vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
+            out = vfit, fold_sse(vfit.vals, fold), vfree
+        memo[key] = out
+        return out
+
+    def fit_candidate(eff: str, base: dict[str, float], base_sse: float, fold: str,
+                      extra: list[dict[str, float]], todo: list[str], memo: dict
+                      ) -> tuple[_Fit, str, str, tuple[str, ...]]:
+        """``eff`` added to the current model ``base`` (fitted on ``fold``, its SSE there
+        ``base_sse``), every choice made on ``fold`` only: the fit, its start, and whether an
+        accepted effect is swapped for an alternative.  Returns (fit, swapped effect, its
+        alternative, free parameters)."""
+        fit, fit_sse = plain_fit(eff, base, base_sse, fold, extra, memo)
         # the same candidate with an accepted effect swapped for an alternative (chosen on the
         # fitting half only, so the out-of-sample test stays honest and is counted once).  A
         # swap must beat the candidate's own fit by the relevance bar, as a refit must: a
@@ -949,22 +1002,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
         # independent PRBS record a swap won the fitting blocks by less and lost the held-out
         # ones by more than the noise power)
         bar = cfg.min_gain * noise_pow * sum(int(_fold_mask(r, fold).sum()) for r in recs)
-        replaces, with_, fit_free = "", "", free + names
+        replaces, with_, fit_free = "", "", free + _effect_names(eff)
         for a in accepted:
             keep = [e for e in accepted if e != a]
             for alt in _alternatives(a, keep, eff):
-                vb = {n: x for n, x in fit.vals.items() if n not in _effect_names(a)
-                      and not (n in ("dv", "nb") and a in ("slip_jump", "stribeck"))}
-                vb = {**base_rule, **vb}  # a friction effect swapped out takes its stick rule with it
-                vfree = tuple(n for n in free if n not in _effect_names(a)) + _effect_names(alt) + names
-                vs = [_fit({**vb, **g}, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016)
-                      for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt)) if {**vb, **g}["fc"] >= 0]
-                if not vs:
-                    continue
-                vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
-                vfit_sse = fold_sse(vfit.vals, fold)
-                if vfit_sse < fit_sse - bar:
-                    fit, fit_sse, replaces, with_, fit_free = vfit, vfit_sse, a, alt, vfree
+                sw = swap_fit(eff, a, alt, base, base_sse, fold, todo, memo)
+                if sw is not None and sw[1] < fit_sse - bar:
+                    (fit, fit_sse, fit_free), replaces, with_ = sw, a, alt
         return fit, replaces, with_, fit_free
 
     def n_params(eff: str, replaces: str, with_: str) -> int:
@@ -1017,8 +1061,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
             return fold2
 
         cands = []
+        memo: dict = {}  # this round's fits on the training blocks (plain candidates and swaps)
+        memo2: dict = {}  # and on the held-out blocks (the second fold)
+        for eff in todo:  # every candidate's own fit first: the swaps start from them
+            plain_fit(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [], memo)
         for eff in todo:
-            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [])
+            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", [], todo, memo)
             sc = _score(_residuals(fit.vals, recs, cfg, dv), recs)
             p_add = n_params(eff, replaces, with_)
             ref, ne, withs = sc_cur, n_eff, (with_,)
@@ -1029,7 +1077,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
                 # held-out blocks and scored on the training blocks; the two folds' block
                 # improvements are tested together (every block scored by a fit that did not see it)
                 cur2, cur2_sse, sc_cur2 = second_fold()
-                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", [])
+                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", [], todo, memo2)
                 sc2 = _score(_residuals(fit2.vals, recs, cfg, dv), recs, "train")
                 ref, sc = _pool(sc_cur, sc_cur2), _pool(sc, sc2)
                 ne, withs = n_eff * ref.n_h / sc_cur.n_h, (with_, with2)
