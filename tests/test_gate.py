@@ -1,13 +1,14 @@
 """The gate's second detector: a steady envelope against Gaussian noise (pipeline/gate.py).
 
-Truth: the Rayleigh envelope of Gaussian noise (Rice 1944) and the Rician second moments of a
-sine in noise (closed form), and planted signals whose generator fixes the answer."""
+Truth: the Rayleigh envelope of Gaussian noise (Rice 1944), Moran's statistic of exponential
+samples (Euler's gamma; variance by the Laguerre expansion) and its Rician value for a sine in
+noise (closed form), and planted signals whose generator fixes the answer."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import fft, signal
+from scipy import fft, signal, special
 
 from pipeline.filters import band_weights
 from pipeline.gate import envelope_test, oscillation_gate
@@ -21,42 +22,64 @@ def _gain(f0: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("slope", [0.0, -2.0])
-def test_envelope_z_of_gaussian_noise_is_standard(slope):
-    """Gaussian noise of power-law spectrum f^slope: q near 1 and z = (1 - q)/se near N(0, 1)."""
+@pytest.mark.parametrize("n,f0", [(2000, 0.02), (500, 0.1)])
+def test_envelope_z_of_gaussian_noise_is_standard(slope, n, f0):
+    """Gaussian noise of power-law spectrum f^slope: Moran's m near Euler's gamma (exponential
+    squared envelope) and z = (E0[m] - m)/se near N(0, 1) (se from the dilogarithm sum)."""
     rng = np.random.default_rng(3)
-    f0 = 0.02
-    w = _gain(f0)
-    bg = np.zeros_like(F)
-    bg[1:] = F[1:] ** slope
-    qs, zs = [], []
+    freqs = fft.rfftfreq(n)
+    w = band_weights(freqs, f_lo=f0 / 2, f_hi=2 * f0)
+    bg = np.zeros_like(freqs)
+    bg[1:] = freqs[1:] ** slope
+    ms, zs = [], []
     for _ in range(200):
-        x = fft.irfft(np.sqrt(bg) * (rng.standard_normal(F.size) + 1j * rng.standard_normal(F.size)), N)
-        q, z = envelope_test(fft.rfft(x) * w, w**2 * bg, N, trim=int(1 / f0))
-        qs.append(q)
+        x = fft.irfft(np.sqrt(bg) * (rng.standard_normal(freqs.size) + 1j * rng.standard_normal(freqs.size)), n)
+        m, z = envelope_test(fft.rfft(x) * w, w**2 * bg, n, trim=int(1 / f0))
+        ms.append(m)
         zs.append(z)
-    assert np.mean(qs) == pytest.approx(1.0, abs=0.08)
-    assert abs(np.mean(zs)) < 0.35
-    assert 0.6 < np.std(zs) < 1.25
+    assert np.mean(ms) == pytest.approx(np.euler_gamma, abs=0.04)
+    assert abs(np.mean(zs)) < 0.25
+    assert 0.8 < np.std(zs) < 1.2
     assert np.mean(np.array(zs) >= 3.0) == 0.0  # no false detection in 200 at the gate's z = 3
 
 
-def test_envelope_q_of_a_sine_in_noise_is_rician():
-    """q = (2 A^2 s^2 + s^4) / (A^2 + s^2)^2 for a sine of in-band power A^2 in noise of in-band
-    power s^2 (Rician second and fourth moments); each power measured on its part alone."""
+def test_envelope_m_of_exponential_samples_has_the_iid_variance():
+    """White complex noise, no band: the squared envelope is i.i.d. exponential, the null's
+    autocorrelation is a unit impulse and se^2 = (pi^2/6 - 1)/n (Li2(1) - 1); measured spread of m."""
+    rng = np.random.default_rng(5)
+    n = 1000
+    flat = np.ones(n // 2 + 1)
+    ms, zs = [], []
+    for _ in range(400):
+        x = rng.standard_normal(n)
+        m, z = envelope_test(fft.rfft(x), flat, n, trim=0)
+        ms.append(m)
+        zs.append(z)
+    se = np.sqrt((np.pi**2 / 6 - 1) / n)
+    assert np.std(ms) == pytest.approx(se, rel=0.15)
+    assert np.std(zs) == pytest.approx(1.0, rel=0.15)
+
+
+def test_envelope_m_of_a_sine_in_noise_is_rician():
+    """m = ln(1 + 1/K) - E1(K) for a sine of in-band power A^2 in noise of in-band power s^2,
+    K = A^2/s^2 (Rician squared envelope: E ln u = ln A^2 + E1(K), Lapidoth & Moser 2003, and
+    E u = A^2 + s^2); each power measured on its part alone.  A pure sine: m = 0."""
     rng = np.random.default_rng(4)
     f0 = 0.05
     w = _gain(f0)
     t = np.arange(N)
     sine = np.sin(2 * np.pi * f0 * t + 0.4)
-    q_sine, z_sine = envelope_test(fft.rfft(sine) * w, w**2, N, trim=40)
-    assert q_sine < 0.01 and z_sine > 5  # se = 2 sqrt(sum |rho|^4 / n) = 0.125 here
-    qs, expect = [], []
-    for _ in range(40):
-        noise = 0.8 * rng.standard_normal(N)
-        a2, s2 = (np.mean(np.abs(signal.hilbert(fft.irfft(fft.rfft(v) * w, N))[40:-40]) ** 2) for v in (sine, noise))
-        qs.append(envelope_test(fft.rfft(sine + noise) * w, w**2, N, trim=40)[0])
-        expect.append((2 * a2 * s2 + s2 * s2) / (a2 + s2) ** 2)
-    assert np.mean(qs) == pytest.approx(np.mean(expect), rel=0.1)
+    m_sine, z_sine = envelope_test(fft.rfft(sine) * w, w**2, N, trim=40)
+    assert m_sine < 1e-3 and z_sine > 10  # se = sqrt(sum (Li2(kappa) - kappa) / n) ~ 0.05 here
+    for scale in (0.5, 1.0, 2.0):
+        ms, expect = [], []
+        for _ in range(40):
+            noise = scale * rng.standard_normal(N)
+            a2, s2 = (np.mean(np.abs(signal.hilbert(fft.irfft(fft.rfft(v) * w, N))[40:-40]) ** 2) for v in (sine, noise))
+            ms.append(envelope_test(fft.rfft(sine + noise) * w, w**2, N, trim=40)[0])
+            k = a2 / s2
+            expect.append(np.log1p(1 / k) - special.exp1(k))
+        assert np.mean(ms) == pytest.approx(np.mean(expect), rel=0.1, abs=0.01)
 
 
 def _wandering(seed: int) -> tuple[np.ndarray, float]:
@@ -98,7 +121,7 @@ def test_steady_envelope_rejects_a_resonance_bump(zeta):
     gain = _gain(1 / 40)
     for s in range(8):
         x = signal.lfilter([1.0], a, np.random.default_rng(s).standard_normal(N))
-        q, z = envelope_test(fft.rfft(x) * gain, gain**2, N, trim=40)
+        _, z = envelope_test(fft.rfft(x) * gain, gain**2, N, trim=40)
         assert z < 3.0
         assert "steady envelope" not in oscillation_gate(x, fs=1.0).reason
 
