@@ -66,6 +66,8 @@ Pure functions over arrays: no I/O, no clock, no plotting.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -139,6 +141,7 @@ class ReconcileConfig:
         friction candidate chooses again, see :func:`_grid`).  0, the default: eq. (2) as
         written only (session 7: with 3, own pairs 5/9 against 6/9 without; one of the two
         misses is a dead time named as a lag where both fit within the noise).
+    threads : threads the multi-start fits run on (the result does not depend on it).
     """
 
     sa: float = SA_M2
@@ -151,6 +154,7 @@ class ReconcileConfig:
     max_nfev: int = 40
     cross_fit: bool = True
     stick_band: float = 0.0
+    threads: int = 2
 
     def __post_init__(self) -> None:
         for name in ("sa", "m", "block_s", "alpha", "min_gain"):
@@ -164,6 +168,8 @@ class ReconcileConfig:
             raise ModelConfigError(f"unknown candidate effect(s) {', '.join(sorted(unknown))}; choose from {', '.join(EFFECTS)}")
         if not (isinstance(self.stick_band, (int, float)) and math.isfinite(self.stick_band) and self.stick_band >= 0):
             raise ModelConfigError(f"ReconcileConfig.stick_band = {self.stick_band!r}: must be a finite number >= 0 (noise standard deviations)")
+        if not (isinstance(self.threads, int) and self.threads >= 1):
+            raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting threads must be an integer >= 1")
         if self.max_effects < 0 or self.max_nfev < 5:
             raise ModelConfigError("ReconcileConfig: max_effects must be >= 0 and max_nfev >= 5")
 
@@ -352,6 +358,7 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
 
 _BASE = ("k", "fc", "fv", "bias")
 _SHORT_NFEV = 6  # evaluation budget of a short multi-start fit
+_SWAP_SCREEN = 4  # grid starts of a swap model fitted (the lowest errors at the start)
 _MAX_REFITS = 2  # times the current model may be refitted from a candidate's basin in one search
 
 
@@ -834,13 +841,19 @@ def reconcile(
     BLAS runs on one thread meanwhile: the fits' linear algebra (SVDs of subsampled
     Jacobians) gains no wall time from a second thread, which only takes a core from the rest
     of the machine (a 60 s bench record: 43.7 s wall and 79.8 s CPU with two OpenBLAS threads,
-    41.5 s both with one; BENCHMARKS.md, issue 8 session 7)."""
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _reconcile(data, signature, config)
+    41.5 s both with one; BENCHMARKS.md, issue 8 session 7).
 
-
-def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileConfig | None) -> Reconciliation:
+    The multi-start fits of one candidate are independent: they run on ``config.threads``
+    threads (the compiled simulator releases the GIL).  Each fit is the same computation on any
+    number of threads, and the results are taken in the starts' order: the outcome does not
+    depend on ``threads``."""
     cfg = config or ReconcileConfig()
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(cfg.threads) as pool:
+        return _reconcile(data, signature, cfg, lambda f, xs: list(pool.map(f, xs)))
+
+
+def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig,
+               pmap: Callable[[Callable, list], list]) -> Reconciliation:
     # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
     def blk(d: ValveData) -> float:
         return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
@@ -917,20 +930,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
         # sum of squares at a start does not tell which basin the fit ends in: a hysteretic
         # output error is steep in k and F_s, and the start nearest in error is often the
         # baseline's compromise)
-        starts = []
-        for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra:
-            v = dict(base)
-            v.update(g)
-            if v["fc"] < 0:
-                continue
-            starts.append(v)
-        shorts = [_fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016) for v in starts]
+        starts = [{**base, **g} for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra]
+        shorts = pmap(lambda v: _fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
+                      [v for v in starts if v["fc"] >= 0])
         shorts.sort(key=lambda f: f.sse_train)
         # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
         # refined: a short fit does not tell which rule fits the record once converged
         rules = {f.vals.get("nb") for f in shorts}
         best = [next(f for f in shorts if f.vals.get("nb") == r) for r in rules] if len(rules) > 1 else shorts[:2]
-        fit = min((_fit(f.vals, free + names, recs, cfg, dv, use=fold) for f in best), key=lambda f: f.sse_train)
+        fit = min(pmap(lambda f: _fit(f.vals, free + names, recs, cfg, dv, use=fold), best), key=lambda f: f.sse_train)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
             # each friction effect chooses its stick rule once, at its first fit (training blocks),
             # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
@@ -973,13 +981,19 @@ def _reconcile(data: ValveData, signature: ValveData | None, config: ReconcileCo
         fit_e = plain_fit(eff, base, base_sse, fold, [], memo)[0]
         if alt in todo:
             fit_alt = plain_fit(alt, base, base_sse, fold, [], memo)[0]
-            starts = [{**without_a(fit_e.vals), **own(fit_alt.vals, alt)},
-                      {**without_a(fit_alt.vals), **own(fit_e.vals, eff)}]
+            ve, va = without_a(fit_e.vals), without_a(fit_alt.vals)
+            cross = [{**ve, **own(fit_alt.vals, alt)}, {**va, **own(fit_e.vals, eff)}]
+            # and each side's grid of the other effect, screened by the error at the start
+            grid = ([{**ve, **g} for g in _grid(alt, ve, recs, cfg, dv, friction_rule.get(alt))]
+                    + [{**va, **g} for g in _grid(eff, va, recs, cfg, dv, friction_rule.get(eff))])
+            grid = [g for g in grid if g["fc"] >= 0]
+            sse0 = [fold_sse(g, fold) for g in grid]
+            starts = cross + [grid[i] for i in np.argsort(sse0)[:_SWAP_SCREEN]]
         else:
             vb = without_a(fit_e.vals)
             starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt))]
-        vs = [_fit(s, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016)
-              for s in starts if s["fc"] >= 0]
+        vs = pmap(lambda s: _fit(s, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
+                  [s for s in starts if s["fc"] >= 0])
         out = None
         if vs:
             vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)

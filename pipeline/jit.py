@@ -15,8 +15,11 @@ def compile_cached(function):
     writable cache location: ``__pycache__`` beside the module, else the user's cache directory.
     A read-only installation with a read-only home then compiles in memory on first use instead
     of failing to import.
+
+    The kernels release the GIL (``nogil``): they touch only their own arrays, so callers may run
+    them on several threads (:func:`models.reconcile.reconcile` runs its multi-start fits so).
     """
     try:
-        return njit(cache=True)(function)
+        return njit(cache=True, nogil=True)(function)
     except RuntimeError:  # pragma: no cover - read-only installation and home
-        return njit(cache=False)(function)
+        return njit(cache=False, nogil=True)(function)

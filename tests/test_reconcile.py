@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from models.errors import ModelConfigError
 from models.identification import ValveData
 from models.karnopp import PRESETS, pct_to_pa
 from models.reconcile import (
@@ -226,3 +227,13 @@ def test_smoothing_reports_the_noise_it_leaves_in_each_sample():
     for a, b in ((3000, 3010), (3300, 3500), (4500, 5500)):
         assert np.mean(sd[a:b]) == pytest.approx(np.mean(emp[a:b]), rel=0.35)
     assert np.mean(sd[3000:3010]) > 5 * np.mean(sd[4500:5500])  # wide at the edge, narrow when steady
+
+
+def test_the_result_does_not_depend_on_the_number_of_fitting_threads():
+    # the multi-start fits run on a thread pool (ReconcileConfig.threads); each fit is the same
+    # computation on any thread and the results are taken in the starts' order
+    data, sa = _fast_edges(1e-3)
+    one, two = (reconcile(data, config=ReconcileConfig(sa=sa, threads=n)).as_dict() for n in (1, 2))
+    assert one["effects"] and one == two
+    with pytest.raises(ModelConfigError, match="threads"):
+        ReconcileConfig(threads=0)
