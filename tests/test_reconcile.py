@@ -84,6 +84,8 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "unknown effect 'bogus'" in capsys.readouterr().err
     assert main(["reconcile", str(tmp_path / "missing.csv")]) == 2
     assert "cannot open" in capsys.readouterr().err
+    assert main(["reconcile", str(tmp_path / "missing.csv"), "--threads", "0"]) == 2
+    assert "--threads 0" in capsys.readouterr().err
 
 
 def test_dead_time_shift_matches_linear_interpolation():
