@@ -1,8 +1,10 @@
 """Cost of ``reconcile`` (issue 8) on a 60 s record at 1 ms (60 000 samples).
 
 Acceptance (issue 8): one reconcile run on a 60 s record at 1 ms finishes in under 60 s; asserted
-on the process CPU time (single-threaded, so CPU time = wall time on an idle machine; on the shared
-2-core machine the wall time is inflated by other engineers' jobs, printed beside it).  Also
+on the wall time with the default two fitting threads (``ReconcileConfig.threads``; since session 8:
+before, one thread, and the process CPU time was asserted).  The process CPU time (both threads)
+is printed beside it; on the shared 2-core machine other engineers' jobs inflate the wall time,
+so the assertion holds only on a quiet machine.  Also
 times, in the same run, the compiled simulator against the pure-Python one of issue 7
 (:func:`models.karnopp.simulate`) on the same record: the fits run the simulator hundreds of times.
 
@@ -40,7 +42,7 @@ def test_reconcile_60s_record_under_60s():
         t0, c0 = time.perf_counter(), time.process_time()
         r = reconcile(ValveData(rec.t, rec.p, rec.x, "bench"))
         dt, cpu = time.perf_counter() - t0, time.process_time() - c0
-        worst = max(worst, cpu)
+        worst = max(worst, dt)
         print(f"{name}: {exc.t.size} samples, reconcile {dt:.1f} s wall, {cpu:.1f} s CPU, effects {r.effects}, "
               f"RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm (noise {r.noise_floor * 1e6:.1f})")
     p = PRESETS["low"].replace(tau_p=0.0)
