@@ -960,8 +960,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         ``fold``: (fit, its SSE on ``fold``, free parameters), or None without a valid start.  The
         same model is reached from the candidate ``alt`` with ``a`` swapped for ``eff``: it is
         fitted once per round and fold (``memo``), started from both candidates' own fits (each
-        with ``a`` taken out and the other's parameters put in).  An ``alt`` that is no candidate
-        of this round (a friction effect exclusive with ``a``) starts from its grid instead."""
+        with ``a`` taken out and the other's parameters put in) and from the :data:`_SWAP_SCREEN`
+        best starts of both sides' grids by the error at the start (the cross starts alone lost
+        a planted lag + dead time pair on a square wave: the lag's own fit beside a deadband
+        was a third of the truth).  An ``alt`` that is no candidate of this round (a friction
+        effect exclusive with ``a``) starts from its grid instead, as every swap did before
+        (session 8: 688 short swap fits → 156 on an unseen 40 s record, ACCURACY.md)."""
         keep = [e for e in accepted if e != a]
         key = ("swap", frozenset(keep + [alt, eff]))
         if key in memo:
@@ -1001,14 +1005,14 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         memo[key] = out
         return out
 
-    def fit_candidate(eff: str, base: dict[str, float], base_sse: float, fold: str,
-                      extra: list[dict[str, float]], todo: list[str], memo: dict
-                      ) -> tuple[_Fit, str, str, tuple[str, ...]]:
+    def fit_candidate(eff: str, base: dict[str, float], base_sse: float, fold: str, todo: list[str],
+                      memo: dict) -> tuple[_Fit, str, str, tuple[str, ...]]:
         """``eff`` added to the current model ``base`` (fitted on ``fold``, its SSE there
         ``base_sse``), every choice made on ``fold`` only: the fit, its start, and whether an
         accepted effect is swapped for an alternative.  Returns (fit, swapped effect, its
-        alternative, free parameters)."""
-        fit, fit_sse = plain_fit(eff, base, base_sse, fold, extra, memo)
+        alternative, free parameters).  The candidate's own fit comes from ``memo`` when the
+        round already made it (with its carried start, see the round below)."""
+        fit, fit_sse = plain_fit(eff, base, base_sse, fold, [], memo)
         # the same candidate with an accepted effect swapped for an alternative (chosen on the
         # fitting half only, so the out-of-sample test stays honest and is counted once).  A
         # swap must beat the candidate's own fit by the relevance bar, as a refit must: a
@@ -1080,7 +1084,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         for eff in todo:  # every candidate's own fit first: the swaps start from them
             plain_fit(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [], memo)
         for eff in todo:
-            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", [], todo, memo)
+            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", todo, memo)
             sc = _score(_residuals(fit.vals, recs, cfg, dv), recs)
             p_add = n_params(eff, replaces, with_)
             ref, ne, withs = sc_cur, n_eff, (with_,)
@@ -1091,7 +1095,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 # held-out blocks and scored on the training blocks; the two folds' block
                 # improvements are tested together (every block scored by a fit that did not see it)
                 cur2, cur2_sse, sc_cur2 = second_fold()
-                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", [], todo, memo2)
+                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", todo, memo2)
                 sc2 = _score(_residuals(fit2.vals, recs, cfg, dv), recs, "train")
                 ref, sc = _pool(sc_cur, sc_cur2), _pool(sc, sc2)
                 ne, withs = n_eff * ref.n_h / sc_cur.n_h, (with_, with2)
