@@ -18,6 +18,9 @@ def compile_cached(function):
 
     The kernels release the GIL (``nogil``): they touch only their own arrays, so callers may run
     them on several threads (:func:`models.reconcile.reconcile` runs its multi-start fits so).
+    numba's cache index does not record the flag: a cache written before it was set (session 8)
+    is loaded as it is and holds the GIL (threads then gain nothing); deleting the
+    ``__pycache__/*.nbi`` / ``*.nbc`` files beside the modules rebuilds it.
     """
     try:
         return njit(cache=True, nogil=True)(function)
