@@ -919,6 +919,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     def train_sse(v: dict[str, float], res: list[np.ndarray] | None = None) -> float:
         return fold_sse(v, "train", res)
 
+    def short_fits(starts: list[dict[str, float]], names: tuple[str, ...], fold: str) -> list[_Fit]:
+        """A short coarse fit on ``fold`` from every start with ``F_c >= 0`` (the multi-start's
+        first stage), on the thread pool, in the starts' order."""
+        return pmap(lambda v: _fit(v, names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
+                    [v for v in starts if v["fc"] >= 0])
+
     def plain_fit(eff: str, base: dict[str, float], base_sse: float, fold: str,
                   extra: list[dict[str, float]], memo: dict) -> tuple[_Fit, float]:
         """``eff`` added to the current model ``base`` (its SSE on ``fold`` ``base_sse``) and fitted
@@ -931,8 +937,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # output error is steep in k and F_s, and the start nearest in error is often the
         # baseline's compromise)
         starts = [{**base, **g} for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra]
-        shorts = pmap(lambda v: _fit(v, free + names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
-                      [v for v in starts if v["fc"] >= 0])
+        shorts = short_fits(starts, free + names, fold)
         shorts.sort(key=lambda f: f.sse_train)
         # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
         # refined: a short fit does not tell which rule fits the record once converged
@@ -996,8 +1001,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         else:
             vb = without_a(fit_e.vals)
             starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt))]
-        vs = pmap(lambda s: _fit(s, vfree, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
-                  [s for s in starts if s["fc"] >= 0])
+        vs = short_fits(starts, vfree, fold)
         out = None
         if vs:
             vfit = _fit(min(vs, key=lambda f: f.sse_train).vals, vfree, recs, cfg, dv, use=fold)
