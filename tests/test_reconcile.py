@@ -86,6 +86,8 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "cannot open" in capsys.readouterr().err
     assert main(["reconcile", str(tmp_path / "missing.csv"), "--threads", "0"]) == 2
     assert "--threads 0" in capsys.readouterr().err
+    assert main(["reconcile", str(tmp_path / "missing.csv"), "--stick-band", "-1"]) == 2
+    assert "--stick-band -1" in capsys.readouterr().err
 
 
 def test_dead_time_shift_matches_linear_interpolation():

@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"mass of the moving parts in kg, held fixed (default {M_KG})")
     p.add_argument("--threads", type=int, default=ReconcileConfig.threads, metavar="N",
                    help="threads for the multi-start fits (default %(default)s; the result does not depend on it)")
+    p.add_argument("--stick-band", type=float, default=ReconcileConfig.stick_band, metavar="SD",
+                   help="stick band of the fitted models in standard deviations of the recorded-pressure noise "
+                        "(default %(default)s; 0: the stick/slip rule of eq. 2 as written)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", type=Path, default=None, metavar="OUT.html",
                    help="write a self-contained HTML report with plots")
@@ -141,9 +144,12 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"{flag} {v}: must be a finite number > 0")
     if args.threads < 1:
         raise UsageError(f"--threads {args.threads}: at least one fitting thread is needed")
+    if not (math.isfinite(args.stick_band) and args.stick_band >= 0):
+        raise UsageError(f"--stick-band {args.stick_band}: must be a finite number >= 0 (noise standard deviations)")
     data = read_valve_csv(args.data)
     sig = read_valve_csv(args.signature) if args.signature is not None else None
-    r = reconcile(data, sig, ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads))
+    r = reconcile(data, sig, ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads,
+                                                 stick_band=args.stick_band))
     lines = _lines(r)
     print("\n".join(lines))
     if args.json is not None:
