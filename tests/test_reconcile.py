@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from models.errors import ModelConfigError
+from models.errors import IdentificationError, ModelConfigError
 from models.identification import ValveData
 from models.karnopp import PRESETS, pct_to_pa
 from models.reconcile import (
@@ -179,6 +179,19 @@ def test_force_balance_at_the_head_of_each_rest_recovers_spring_and_friction_on_
     head = _initial_baseline(recs, ReconcileConfig(sa=params.sa), at="head")
     assert head["k"] == pytest.approx(params.k, rel=0.15)
     assert head["fc"] == pytest.approx(params.fc, rel=0.25)
+    # with the breakaways (eq. 11-12 as written) the same balances also give F_s
+    brk = _initial_baseline(recs, ReconcileConfig(sa=params.sa), at="breakaway")
+    assert brk["k"] == pytest.approx(params.k, rel=0.15)
+    assert brk["fc"] == pytest.approx(params.fc, rel=0.25)
+    assert brk["fc"] + brk["dfs"] == pytest.approx(1.6 * params.fc, rel=0.25)
+    assert brk["dfs"] > 0.3 * params.fc  # the slip jump is seen (planted: 0.6 F_c)
+    # a record without a slip jump gives none (or refuses)
+    rec0 = hidden_record(params, exc, {}, noise_x=5e-6, noise_p=50.0, seed=3)
+    recs0 = [prepare(ValveData(rec0.t, rec0.p, rec0.x, "ramps"), 0.5, params.sa)]
+    try:
+        assert _initial_baseline(recs0, ReconcileConfig(sa=params.sa), at="breakaway")["dfs"] < 0.15 * params.fc
+    except IdentificationError:
+        pass
 
 
 def _fast_edges(theta: float) -> tuple[ValveData, float]:
