@@ -60,3 +60,21 @@ def test_publish_makes_a_running_monitor_see_the_incident_again(tmp_path):
             if ga.alert is not None:
                 assert strip(ga.alert) == strip(b[key].alert)
     assert sum(g.alert is not None for g in b.values()) == 2
+
+
+@pytest.mark.timeout(120)
+def test_publish_without_a_subscriber_warns_and_still_publishes(tmp_path, monkeypatch, capsys):
+    """zenoh drops a put that no known subscriber matches: the publisher waits for a matching
+    subscriber before its first put, and after the wait publishes anyway with a warning."""
+    import service.commands.replay as replay_cmd
+    from adapters.zenoh_session import open_session
+
+    record_plant(tmp_path / "rec")
+    monkeypatch.setattr(replay_cmd, "_MATCH_WAIT_S", 0.3)
+    endpoint = f"tcp/127.0.0.1:{loopback_port(65)}"
+    bus = open_session("peer", listen=[endpoint])  # a bus on which nothing subscribes to the samples
+    try:
+        assert main(["replay", str(tmp_path / "rec"), "--publish", "--speed", "inf", "--connect", endpoint]) == 0
+    finally:
+        bus.close()
+    assert "no subscriber for" in capsys.readouterr().err

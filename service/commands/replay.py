@@ -158,6 +158,28 @@ def run(args: argparse.Namespace) -> int:
     return 0 if not differ else 1
 
 
+#: Longest wait for a subscriber before the first put of ``--publish``, s.
+_MATCH_WAIT_S = 10.0
+
+
+def _wait_for_subscriber(session, key: str, timeout_s: float, err: Console) -> bool:
+    """Wait until a subscriber matching ``key`` is known to ``session`` (zenoh drops a put that
+    no known subscriber matches, so the first samples of a replay published the moment the session
+    opened were lost whenever the subscriber's declaration had not yet arrived: a fixed half-second
+    pause flaked under load); after ``timeout_s`` publish anyway, with a warning."""
+    pub = session.declare_publisher(key)
+    try:
+        deadline = time.monotonic() + timeout_s
+        while not pub.matching_status.matching:
+            if time.monotonic() >= deadline:
+                err.print(f"warning: no subscriber for {key} after {timeout_s:g} s; publishing anyway")
+                return False
+            time.sleep(0.005)
+        return True
+    finally:
+        pub.undeclare()
+
+
 def _publish(args, console: Console, err: Console, total: int | None) -> int:
     import zenoh
 
@@ -184,11 +206,14 @@ def _publish(args, console: Console, err: Console, total: int | None) -> int:
 
     sent = messages = 0
     start = first_due = None
+    matched = False
     try:
-        time.sleep(0.5)   # let the session connect before the first put
         with _progress(err) as progress:
             task = progress.add_task("re-publishing windows", total=total)
             for b in republish_plan(counted()):
+                if not matched:  # zenoh drops a put that no known subscriber matches: wait for the route
+                    matched = True
+                    _wait_for_subscriber(session, f"{prefix}/{b.loop_id}/{b.signal}", _MATCH_WAIT_S, err)
                 if math.isfinite(args.speed):
                     if start is None:
                         start, first_due = time.monotonic(), b.due_ns
