@@ -148,8 +148,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--stick-band {args.stick_band}: must be a finite number >= 0 (noise standard deviations)")
     data = read_valve_csv(args.data)
     sig = read_valve_csv(args.signature) if args.signature is not None else None
-    r = reconcile(data, sig, ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads,
-                                                 stick_band=args.stick_band))
+    cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band)
+    r = reconcile(data, sig, cfg)
     lines = _lines(r)
     print("\n".join(lines))
     if args.json is not None:
