@@ -66,8 +66,8 @@ Pure functions over arrays: no I/O, no clock, no plotting.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,7 +79,7 @@ from threadpoolctl import threadpool_limits
 from .errors import IdentificationError, ModelConfigError
 from .identification import ValveData, _runs, check_record, noise_std, sg_derivatives, slow_velocity
 from .karnopp import M_KG, SA_M2
-from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, simulate_effects
+from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, residual_effects
 
 __all__ = [
     "REGIMES",
@@ -141,7 +141,8 @@ class ReconcileConfig:
         friction candidate chooses again, see :func:`_grid`).  0, the default: eq. (2) as
         written only (session 7: with 3, own pairs 5/9 against 6/9 without; one of the two
         misses is a dead time named as a lag where both fit within the noise).
-    threads : threads the multi-start fits run on (the result does not depend on it).
+    threads : worker processes the multi-start fits run on (:class:`_FitPool`; the name is kept
+        from when they were threads; the result does not depend on it).
     """
 
     sa: float = SA_M2
@@ -169,7 +170,7 @@ class ReconcileConfig:
         if not (isinstance(self.stick_band, (int, float)) and math.isfinite(self.stick_band) and self.stick_band >= 0):
             raise ModelConfigError(f"ReconcileConfig.stick_band = {self.stick_band!r}: must be a finite number >= 0 (noise standard deviations)")
         if not (isinstance(self.threads, int) and self.threads >= 1):
-            raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting threads must be an integer >= 1")
+            raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting workers must be an integer >= 1")
         if self.max_effects < 0 or self.max_nfev < 5:
             raise ModelConfigError("ReconcileConfig: max_effects must be >= 0 and max_nfev >= 5")
 
@@ -375,19 +376,23 @@ def _effect_names(effect: str) -> tuple[str, ...]:
     return tuple("dfs" if n == "fs" else n for n in EFFECT_PARAMS[effect])
 
 
-def _simulate(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
+def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
+    """Measured minus simulated position of each record (:func:`models.valve_effects.residual_effects`:
+    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies)."""
     valve = _to_valve(vals, cfg, dv)
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
-    def band(r: Prepared) -> float | np.ndarray:
-        return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else 0.0
+    def band(r: Prepared) -> np.ndarray:
+        if nb > 0 and r.p_noise is not None:
+            return nb * r.sa * r.p_noise
+        if r.x.size not in _ZEROS:
+            _ZEROS[r.x.size] = np.zeros(r.x.size)
+        return _ZEROS[r.x.size]
 
-    return [simulate_effects(valve, r.p_smooth, r.dt, x0_meas=r.x0, rest_meas=r.rest, band=band(r)).x_meas
-            for r in recs]
+    return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r)) for r in recs]
 
 
-def _residuals(vals, recs, cfg, dv) -> list[np.ndarray]:
-    return [r.x - s for r, s in zip(recs, _simulate(vals, recs, cfg, dv))]
+_ZEROS: dict[int, np.ndarray] = {}  # no stick band, per record length (read only)
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
@@ -462,6 +467,63 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
     v = unpack(z)
     res = _residuals(v, recs, cfg, dv)
     return _Fit(v, float(sum(np.sum(e[m] ** 2) for e, m in zip(res, masks))))
+
+
+class _FitPool:
+    """The fits of a multi-start (:func:`_fit`, each one a pure function of its start) on
+    ``workers`` processes for one :func:`reconcile` call.
+
+    Processes, not threads: a fit's Python part (``least_squares``, the parameter packing) holds
+    the GIL, which left two threads at 1.45× of one (BENCHMARKS.md, issue 8 session 8).  The
+    workers are started at the first batch of two or more fits (a record that stops at the
+    baseline never starts them) and forked from the caller where the platform can fork: they
+    start at once, with the compiled kernels loaded and the records in memory (``forkserver`` or
+    ``spawn`` would re-import the caller's main script, which a script without a
+    ``__main__`` guard does not survive, and load numba's cache again in every worker).  Each
+    runs BLAS on one thread as the caller does and returns the fits in the order of the tasks.  A fit computes the same numbers in any process: the outcome does not
+    depend on ``workers``.  ``workers = 1``: every fit runs in the calling process."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: ProcessPoolExecutor | None = None
+        self._recs: list[Prepared] | None = None
+
+    def fits(self, tasks: list[tuple], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[_Fit]:
+        """``_fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)`` for
+        each task ``(vals, names, use, max_nfev, stride_s)``, in order."""
+        if self.workers < 2 or len(tasks) < 2:
+            return [_fit(v, n, recs, cfg, dv, use=u, max_nfev=m, stride_s=s) for v, n, u, m, s in tasks]
+        if self._pool is None:
+            ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_init,
+                                             initargs=(recs, cfg, dv))
+            self._recs = recs
+        elif recs is not self._recs:
+            raise ModelConfigError("_FitPool: the workers serve the records of one reconcile call")
+        return list(self._pool.map(_worker_fit, tasks))
+
+    def __enter__(self) -> _FitPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+
+_WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
+
+
+def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
+    global _WORKER
+    threadpool_limits(limits=1, user_api="blas")
+    _WORKER = (recs, cfg, dv)
+
+
+def _worker_fit(task: tuple) -> _Fit:
+    recs, cfg, dv = _WORKER
+    vals, names, use, max_nfev, stride_s = task
+    return _fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
@@ -844,16 +906,14 @@ def reconcile(
     41.5 s both with one; BENCHMARKS.md, issue 8 session 7).
 
     The multi-start fits of one candidate are independent: they run on ``config.threads``
-    threads (the compiled simulator releases the GIL).  Each fit is the same computation on any
-    number of threads, and the results are taken in the starts' order: the outcome does not
-    depend on ``threads``."""
+    worker processes (:class:`_FitPool`).  Each fit is the same computation in any process,
+    and the results are taken in the starts' order: the outcome does not depend on ``threads``."""
     cfg = config or ReconcileConfig()
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(cfg.threads) as pool:
-        return _reconcile(data, signature, cfg, lambda f, xs: list(pool.map(f, xs)))
+    with threadpool_limits(limits=1, user_api="blas"), _FitPool(cfg.threads) as pool:
+        return _reconcile(data, signature, cfg, pool)
 
 
-def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig,
-               pmap: Callable[[Callable, list], list]) -> Reconciliation:
+def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, pool: _FitPool) -> Reconciliation:
     # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
     def blk(d: ValveData) -> float:
         return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
@@ -921,9 +981,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
 
     def short_fits(starts: list[dict[str, float]], names: tuple[str, ...], fold: str) -> list[_Fit]:
         """A short coarse fit on ``fold`` from every start with ``F_c >= 0`` (the multi-start's
-        first stage), on the thread pool, in the starts' order."""
-        return pmap(lambda v: _fit(v, names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
-                    [v for v in starts if v["fc"] >= 0])
+        first stage), on the worker processes, in the starts' order."""
+        return pool.fits([(v, names, fold, _SHORT_NFEV, 0.016) for v in starts if v["fc"] >= 0], recs, cfg, dv)
 
     def plain_fit(eff: str, base: dict[str, float], base_sse: float, fold: str,
                   extra: list[dict[str, float]], memo: dict) -> tuple[_Fit, float]:
@@ -943,7 +1002,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # refined: a short fit does not tell which rule fits the record once converged
         rules = {f.vals.get("nb") for f in shorts}
         best = [next(f for f in shorts if f.vals.get("nb") == r) for r in rules] if len(rules) > 1 else shorts[:2]
-        fit = min(pmap(lambda f: _fit(f.vals, free + names, recs, cfg, dv, use=fold), best), key=lambda f: f.sse_train)
+        fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
+                  key=lambda f: f.sse_train)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
             # each friction effect chooses its stick rule once, at its first fit (training blocks),
             # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
