@@ -67,7 +67,9 @@ from __future__ import annotations
 
 import math
 import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -460,13 +462,20 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
 
     try:
         out = least_squares(fun, z0, bounds=(lo / sc, hi / sc), method="trf", diff_step=1e-3, x_scale=1.0,
-                            max_nfev=max_nfev or cfg.max_nfev)
+                            max_nfev=max_nfev or cfg.max_nfev, workers=_JACOBIAN_MAP.get())
         z = out.x
     except ValueError:  # a degenerate start (e.g. at a bound): keep it
         z = z0
     v = unpack(z)
     res = _residuals(v, recs, cfg, dv)
     return _Fit(v, float(sum(np.sum(e[m] ** 2) for e, m in zip(res, masks))))
+
+
+#: How a fit in the calling process evaluates the columns of its finite-difference Jacobian: a
+#: map over threads while :func:`reconcile` runs (set by :class:`_FitPool`; the compiled
+#: simulator releases the GIL, and each column is the same computation on any thread), else
+#: None (one after the other).
+_JACOBIAN_MAP: ContextVar[Callable | None] = ContextVar("_JACOBIAN_MAP", default=None)
 
 
 class _FitPool:
@@ -480,13 +489,20 @@ class _FitPool:
     start at once, with the compiled kernels loaded and the records in memory (``forkserver`` or
     ``spawn`` would re-import the caller's main script, which a script without a
     ``__main__`` guard does not survive, and load numba's cache again in every worker).  Each
-    runs BLAS on one thread as the caller does and returns the fits in the order of the tasks.  A fit computes the same numbers in any process: the outcome does not
-    depend on ``workers``.  ``workers = 1``: every fit runs in the calling process."""
+    runs BLAS on one thread as the caller does and returns the fits in the order of the tasks.
+    A fit computes the same numbers in any process: the outcome does not depend on ``workers``.
+    ``workers = 1``: every fit runs in the calling process.
+
+    A fit that runs alone in the calling process (the baseline's, a refinement, a swap model's)
+    evaluates the columns of its finite-difference Jacobian on ``workers`` threads meanwhile
+    (:data:`_JACOBIAN_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
         self._pool: ProcessPoolExecutor | None = None
         self._recs: list[Prepared] | None = None
+        self._threads: ThreadPoolExecutor | None = None
+        self._token = None
 
     def fits(self, tasks: list[tuple], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[_Fit]:
         """``_fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)`` for
@@ -503,12 +519,19 @@ class _FitPool:
         return list(self._pool.map(_worker_fit, tasks))
 
     def __enter__(self) -> _FitPool:
+        if self.workers > 1:
+            self._threads = ThreadPoolExecutor(self.workers)
+            self._token = _JACOBIAN_MAP.set(self._threads.map)
         return self
 
     def __exit__(self, *exc) -> None:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
+        if self._threads is not None:
+            _JACOBIAN_MAP.reset(self._token)
+            self._threads.shutdown()
+            self._threads = None
 
 
 _WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
@@ -517,6 +540,7 @@ _WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
 def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
     global _WORKER
     threadpool_limits(limits=1, user_api="blas")
+    _JACOBIAN_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
     _WORKER = (recs, cfg, dv)
 
 
@@ -524,6 +548,21 @@ def _worker_fit(task: tuple) -> _Fit:
     recs, cfg, dv = _WORKER
     vals, names, use, max_nfev, stride_s = task
     return _fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
+
+
+_MOTION: list[tuple[Prepared, np.ndarray, np.ndarray]] = []  # the last records' motion (see _motion)
+
+
+def _motion(r: Prepared) -> tuple[np.ndarray, np.ndarray]:
+    """Motion state (:func:`motion_state`) and Appendix-A velocity
+    (:func:`models.identification.sg_derivatives`) of a record's position, kept for the last
+    few records: the multi-start reads them at every force-balance start (hundreds per run)."""
+    for rec, state, xd in _MOTION:
+        if rec is r:
+            return state, xd
+    state, xd = motion_state(r.x, r.dt)[0], sg_derivatives(r.x, r.dt).xd
+    _MOTION[:] = [(r, state, xd)] + _MOTION[:3]
+    return state, xd
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
@@ -551,8 +590,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         raise ModelConfigError(f"at={at!r}: 'tail' or 'head' of each rest")
     stops, slide_rows = [], []
     for r in recs:
-        state, _ = motion_state(r.x, r.dt)
-        xd = sg_derivatives(r.x, r.dt).xd  # Appendix A: follows fast slides too
+        state, xd = _motion(r)  # xd: Appendix A, follows fast slides too
         F = cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)
         runs = _runs(state)
         for (a0, a1, s0), (b0, b1, s1) in zip(runs, runs[1:]):
