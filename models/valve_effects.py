@@ -227,21 +227,28 @@ def transmitter(x_stem: np.ndarray, deadband: float, y0: float | None = None) ->
 
 
 @compile_cached
-def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
+def _slide_speed(A, h, gs, fc, fs, vs, u0, uc, ec):  # pragma: no cover - compiled
     """Speed u > 0 after a sliding step: root of A·u + h·F(u) − gs = 0 with the sliding friction
     F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck), bracketed in
-    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed."""
+    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed.
+
+    ``uc``, ``ec``: a speed where ``exp(−(u/vs)²)`` was last evaluated and its value (the caller
+    keeps them from the previous call: a slide's next step starts from the speed the last one
+    converged at, where the Newton iteration evaluated it); returns (u, uc, ec) updated.  The
+    iterates and the root are those of the evaluation at every step, bit for bit."""
     hi = (gs - h * fc) / A
     if vs <= 0.0 or fs <= fc:
-        return hi
+        return hi, uc, ec
     lo = 0.0
     u = min(max(u0, 0.0), hi)
     for _ in range(30):
-        r = (u / vs) ** 2
-        e = math.exp(-r)
+        if u != uc:
+            uc = u
+            ec = math.exp(-((u / vs) ** 2))
+        e = ec
         phi = A * u + h * (fc + (fs - fc) * e) - gs
         if abs(phi) <= 1e-12 * (abs(gs) + 1e-30):
-            return u
+            return u, uc, ec
         if phi < 0.0:
             lo = u
         else:
@@ -251,9 +258,9 @@ def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
         if not (lo < un < hi):
             un = 0.5 * (lo + hi)
         if abs(un - u) <= 1e-15 + 1e-12 * u:
-            return un
+            return un, uc, ec
         u = un
-    return u
+    return u, uc, ec
 
 
 @compile_cached
@@ -317,6 +324,7 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     fs0 = fs if vs > 0.0 else fc  # sliding friction as the speed goes to zero
     f_prev = sa * p[0] - k * x
     free = 0.0  # direction of a stop inside the stick band (0: none; the stem is held by F_s)
+    uc, ec = -1.0, 0.0  # the Stribeck term's last evaluation (see _slide_speed; none yet)
     resid = xm.size == n
     for i in range(n):
         b = band[i]
@@ -346,7 +354,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
             else:  # slip (1st line)
                 s = 1.0 if v > 0.0 else -1.0
                 if s * g > h * fs0:
-                    v = s * _slide_speed(A, h, s * g, fc, fs, vs, s * v)
+                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, s * v, uc, ec)
+                    v = s * u
                     x = x + h * v
                 elif abs(g) <= h * fs:  # the stem stops within the step
                     v_free = (g - h * fs0 * s) / A  # where it would be without stopping (sign −s)
@@ -356,7 +365,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                         free = s
                 else:  # it reverses, with friction of the new sign
                     s = -s
-                    v = s * _slide_speed(A, h, s * g, fc, fs, vs, 0.0)
+                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, 0.0, uc, ec)
+                    v = s * u
                     x = x + h * v
             if x > x_max:
                 x = x_max
