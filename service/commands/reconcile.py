@@ -35,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mass", type=float, default=M_KG, metavar="KG",
                    help=f"mass of the moving parts in kg, held fixed (default {M_KG})")
     p.add_argument("--threads", type=int, default=ReconcileConfig.threads, metavar="N",
-                   help="threads for the multi-start fits (default %(default)s; the result does not depend on it)")
+                   help="worker processes for the multi-start fits (default %(default)s; the result does not depend on it)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", type=Path, default=None, metavar="OUT.html",
                    help="write a self-contained HTML report with plots")
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(v) and v > 0):
             raise UsageError(f"{flag} {v}: must be a finite number > 0")
     if args.threads < 1:
-        raise UsageError(f"--threads {args.threads}: at least one fitting thread is needed")
+        raise UsageError(f"--threads {args.threads}: at least one fitting worker is needed")
     data = read_valve_csv(args.data)
     sig = read_valve_csv(args.signature) if args.signature is not None else None
     r = reconcile(data, sig, ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads))
