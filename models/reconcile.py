@@ -457,15 +457,35 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
         return v
 
     last: list = [None]  # the latest evaluation (z, residuals): the fit usually ends on it
+    budget = max_nfev or cfg.max_nfev
+    steps = [0, None, False]  # evaluations outside the Jacobian (what max_nfev counts), the last one, in a Jacobian
 
     def fun(z):
         res = _residuals(unpack(z), recs, cfg, dv)
         last[0] = (z.tobytes(), res)
-        return np.concatenate([e[m] for e, m in zip(res, masks)]) / scale_res
+        f = np.concatenate([e[m] for e, m in zip(res, masks)]) / scale_res
+        if not steps[2]:
+            steps[0] += 1
+            steps[1] = f
+        return f
+
+    def columns(f, points):
+        # the finite-difference Jacobian's evaluations (least_squares(workers=...)).  Once the
+        # evaluation budget is spent the fit stops at the point it has: trf still asks for the
+        # Jacobian there after an accepted step, to report the gradient, which this fit does not
+        # use; its columns are then the point's own residuals (a zero Jacobian), not simulations
+        points = list(points)
+        if steps[0] >= budget:
+            return [steps[1]] * len(points)
+        steps[2] = True
+        try:
+            return list((_JACOBIAN_MAP.get() or map)(f, points))
+        finally:
+            steps[2] = False
 
     try:
         out = least_squares(fun, z0, bounds=(lo / sc, hi / sc), method="trf", diff_step=1e-3, x_scale=1.0,
-                            max_nfev=max_nfev or cfg.max_nfev, workers=_JACOBIAN_MAP.get())
+                            max_nfev=budget, workers=columns)
         z = out.x
     except ValueError:  # a degenerate start (e.g. at a bound): keep it
         z = z0
