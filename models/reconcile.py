@@ -66,8 +66,10 @@ Pure functions over arrays: no I/O, no clock, no plotting.
 from __future__ import annotations
 
 import math
+import multiprocessing
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,7 +81,7 @@ from threadpoolctl import threadpool_limits
 from .errors import IdentificationError, ModelConfigError
 from .identification import ValveData, _runs, check_record, noise_std, sg_derivatives, slow_velocity
 from .karnopp import M_KG, SA_M2
-from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, simulate_effects
+from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, residual_effects
 
 __all__ = [
     "REGIMES",
@@ -145,7 +147,8 @@ class ReconcileConfig:
         the model sticks where the valve slides: at the true parameters 119–131 µm against a
         noise of 14 µm, 15 µm with the band); on the own suite it cost one pair (5/9 against
         6/9: a dead time named as a lag where both fit within the noise).
-    threads : threads the multi-start fits run on (the result does not depend on it).
+    threads : worker processes the multi-start fits run on (:class:`_FitPool`; the name is kept
+        from when they were threads; the result does not depend on it).
     """
 
     sa: float = SA_M2
@@ -173,7 +176,7 @@ class ReconcileConfig:
         if not (isinstance(self.stick_band, (int, float)) and math.isfinite(self.stick_band) and self.stick_band >= 0):
             raise ModelConfigError(f"ReconcileConfig.stick_band = {self.stick_band!r}: must be a finite number >= 0 (noise standard deviations)")
         if not (isinstance(self.threads, int) and self.threads >= 1):
-            raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting threads must be an integer >= 1")
+            raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting workers must be an integer >= 1")
         if self.max_effects < 0 or self.max_nfev < 5:
             raise ModelConfigError("ReconcileConfig: max_effects must be >= 0 and max_nfev >= 5")
 
@@ -379,19 +382,23 @@ def _effect_names(effect: str) -> tuple[str, ...]:
     return tuple("dfs" if n == "fs" else n for n in EFFECT_PARAMS[effect])
 
 
-def _simulate(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
+def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
+    """Measured minus simulated position of each record (:func:`models.valve_effects.residual_effects`:
+    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies)."""
     valve = _to_valve(vals, cfg, dv)
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
-    def band(r: Prepared) -> float | np.ndarray:
-        return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else 0.0
+    def band(r: Prepared) -> np.ndarray:
+        if nb > 0 and r.p_noise is not None:
+            return nb * r.sa * r.p_noise
+        if r.x.size not in _ZEROS:
+            _ZEROS[r.x.size] = np.zeros(r.x.size)
+        return _ZEROS[r.x.size]
 
-    return [simulate_effects(valve, r.p_smooth, r.dt, x0_meas=r.x0, rest_meas=r.rest, band=band(r)).x_meas
-            for r in recs]
+    return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r)) for r in recs]
 
 
-def _residuals(vals, recs, cfg, dv) -> list[np.ndarray]:
-    return [r.x - s for r, s in zip(recs, _simulate(vals, recs, cfg, dv))]
+_ZEROS: dict[int, np.ndarray] = {}  # no stick band, per record length (read only)
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
@@ -436,11 +443,11 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
     # every 4 ms of the record enters the objective: the fit is as good (the model error is smooth,
     # the noise white) and the least-squares linear algebra 4 times cheaper at 1 ms sampling
     # (the short fits of the multi-start use every 16 ms)
-    masks = []
+    masks = []  # the samples of each record that enter, as indices (cheaper than a mask per evaluation)
     for r in recs:
         m = np.ones(r.x.size, bool) if use == "all" else _fold_mask(r, use)
         m[np.arange(r.x.size) % max(1, int(round(stride_s / r.dt))) != 0] = False
-        masks.append(m)
+        masks.append(np.flatnonzero(m))
     scale_res = max(min(r.sigma_x for r in recs), 1e-9)
     bnd = [_bounds(n, vals0, recs) for n in free]
     lo = np.array([b[0] for b in bnd])
@@ -453,19 +460,137 @@ def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], c
         v.update({n: float(zi * si) for n, zi, si in zip(free, z, sc)})
         return v
 
+    last: list = [None]  # the latest evaluation (z, residuals): the fit usually ends on it
+    budget = max_nfev or cfg.max_nfev
+    steps = [0, None, False]  # evaluations outside the Jacobian (what max_nfev counts), the last one, in a Jacobian
+
     def fun(z):
         res = _residuals(unpack(z), recs, cfg, dv)
-        return np.concatenate([e[m] for e, m in zip(res, masks)]) / scale_res
+        last[0] = (z.tobytes(), res)
+        f = np.concatenate([e[m] for e, m in zip(res, masks)]) / scale_res
+        if not steps[2]:
+            steps[0] += 1
+            steps[1] = f
+        return f
+
+    def columns(f, points):
+        # the finite-difference Jacobian's evaluations (least_squares(workers=...)).  Once the
+        # evaluation budget is spent the fit stops at the point it has: trf still asks for the
+        # Jacobian there after an accepted step, to report the gradient, which this fit does not
+        # use; its columns are then the point's own residuals (a zero Jacobian), not simulations
+        points = list(points)
+        if steps[0] >= budget:
+            return [steps[1]] * len(points)
+        steps[2] = True
+        try:
+            return list((_JACOBIAN_MAP.get() or map)(f, points))
+        finally:
+            steps[2] = False
 
     try:
         out = least_squares(fun, z0, bounds=(lo / sc, hi / sc), method="trf", diff_step=1e-3, x_scale=1.0,
-                            max_nfev=max_nfev or cfg.max_nfev)
+                            max_nfev=budget, workers=columns)
         z = out.x
     except ValueError:  # a degenerate start (e.g. at a bound): keep it
         z = z0
     v = unpack(z)
-    res = _residuals(v, recs, cfg, dv)
+    seen = last[0]
+    res = seen[1] if seen is not None and seen[0] == z.tobytes() else _residuals(v, recs, cfg, dv)
     return _Fit(v, float(sum(np.sum(e[m] ** 2) for e, m in zip(res, masks))))
+
+
+#: How a fit in the calling process evaluates the columns of its finite-difference Jacobian: a
+#: map over threads while :func:`reconcile` runs (set by :class:`_FitPool`; the compiled
+#: simulator releases the GIL, and each column is the same computation on any thread), else
+#: None (one after the other).
+_JACOBIAN_MAP: ContextVar[Callable | None] = ContextVar("_JACOBIAN_MAP", default=None)
+
+
+class _FitPool:
+    """The fits of a multi-start (:func:`_fit`, each one a pure function of its start) on
+    ``workers`` processes for one :func:`reconcile` call.
+
+    Processes, not threads: a fit's Python part (``least_squares``, the parameter packing) holds
+    the GIL, which left two threads at 1.45× of one (BENCHMARKS.md, issue 8 session 8).  The
+    workers are started at the first batch of two or more fits (a record that stops at the
+    baseline never starts them) and forked from the caller where the platform can fork: they
+    start at once, with the compiled kernels loaded and the records in memory (``forkserver`` or
+    ``spawn`` would re-import the caller's main script, which a script without a
+    ``__main__`` guard does not survive, and load numba's cache again in every worker).  Each
+    runs BLAS on one thread as the caller does and returns the fits in the order of the tasks.
+    A fit computes the same numbers in any process: the outcome does not depend on ``workers``.
+    ``workers = 1``: every fit runs in the calling process.
+
+    A fit that runs alone in the calling process (the baseline's, a refinement, a swap model's)
+    evaluates the columns of its finite-difference Jacobian on ``workers`` threads meanwhile
+    (:data:`_JACOBIAN_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: ProcessPoolExecutor | None = None
+        self._recs: list[Prepared] | None = None
+        self._threads: ThreadPoolExecutor | None = None
+        self._token = None
+
+    def fits(self, tasks: list[tuple], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[_Fit]:
+        """``_fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)`` for
+        each task ``(vals, names, use, max_nfev, stride_s)``, in order."""
+        if self.workers < 2 or len(tasks) < 2:
+            return [_fit(v, n, recs, cfg, dv, use=u, max_nfev=m, stride_s=s) for v, n, u, m, s in tasks]
+        if self._pool is None:
+            ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_init,
+                                             initargs=(recs, cfg, dv))
+            self._recs = recs
+        elif recs is not self._recs:
+            raise ModelConfigError("_FitPool: the workers serve the records of one reconcile call")
+        return list(self._pool.map(_worker_fit, tasks))
+
+    def __enter__(self) -> _FitPool:
+        if self.workers > 1:
+            self._threads = ThreadPoolExecutor(self.workers)
+            self._token = _JACOBIAN_MAP.set(self._threads.map)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+        if self._threads is not None:
+            _JACOBIAN_MAP.reset(self._token)
+            self._threads.shutdown()
+            self._threads = None
+
+
+_WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
+
+
+def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
+    global _WORKER
+    threadpool_limits(limits=1, user_api="blas")
+    _JACOBIAN_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
+    _WORKER = (recs, cfg, dv)
+
+
+def _worker_fit(task: tuple) -> _Fit:
+    recs, cfg, dv = _WORKER
+    vals, names, use, max_nfev, stride_s = task
+    return _fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
+
+
+_MOTION: list[tuple[Prepared, np.ndarray, np.ndarray]] = []  # the last records' motion (see _motion)
+
+
+def _motion(r: Prepared) -> tuple[np.ndarray, np.ndarray]:
+    """Motion state (:func:`motion_state`) and Appendix-A velocity
+    (:func:`models.identification.sg_derivatives`) of a record's position, kept for the last
+    few records: the multi-start reads them at every force-balance start (hundreds per run)."""
+    for rec, state, xd in _MOTION:
+        if rec is r:
+            return state, xd
+    state, xd = motion_state(r.x, r.dt)[0], sg_derivatives(r.x, r.dt).xd
+    _MOTION[:] = [(r, state, xd)] + _MOTION[:3]
+    return state, xd
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
@@ -500,8 +625,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         raise ModelConfigError(f"at={at!r}: 'tail', 'head' or 'breakaway' of each rest")
     stops, breaks, slide_rows = [], [], []
     for r in recs:
-        state, _ = motion_state(r.x, r.dt)
-        xd = sg_derivatives(r.x, r.dt).xd  # Appendix A: follows fast slides too
+        state, xd = _motion(r)  # xd: Appendix A, follows fast slides too
         F = cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)
         runs = _runs(state)
         for j, ((a0, a1, s0), (b0, b1, s1)) in enumerate(zip(runs, runs[1:])):
@@ -875,16 +999,14 @@ def reconcile(
     41.5 s both with one; BENCHMARKS.md, issue 8 session 7).
 
     The multi-start fits of one candidate are independent: they run on ``config.threads``
-    threads (the compiled simulator releases the GIL).  Each fit is the same computation on any
-    number of threads, and the results are taken in the starts' order: the outcome does not
-    depend on ``threads``."""
+    worker processes (:class:`_FitPool`).  Each fit is the same computation in any process,
+    and the results are taken in the starts' order: the outcome does not depend on ``threads``."""
     cfg = config or ReconcileConfig()
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(cfg.threads) as pool:
-        return _reconcile(data, signature, cfg, lambda f, xs: list(pool.map(f, xs)))
+    with threadpool_limits(limits=1, user_api="blas"), _FitPool(cfg.threads) as pool:
+        return _reconcile(data, signature, cfg, pool)
 
 
-def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig,
-               pmap: Callable[[Callable, list], list]) -> Reconciliation:
+def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, pool: _FitPool) -> Reconciliation:
     # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
     def blk(d: ValveData) -> float:
         return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
@@ -952,9 +1074,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
 
     def short_fits(starts: list[dict[str, float]], names: tuple[str, ...], fold: str) -> list[_Fit]:
         """A short coarse fit on ``fold`` from every start with ``F_c >= 0`` (the multi-start's
-        first stage), on the thread pool, in the starts' order."""
-        return pmap(lambda v: _fit(v, names, recs, cfg, dv, use=fold, max_nfev=_SHORT_NFEV, stride_s=0.016),
-                    [v for v in starts if v["fc"] >= 0])
+        first stage), on the worker processes, in the starts' order."""
+        return pool.fits([(v, names, fold, _SHORT_NFEV, 0.016) for v in starts if v["fc"] >= 0], recs, cfg, dv)
 
     def plain_fit(eff: str, base: dict[str, float], base_sse: float, fold: str,
                   extra: list[dict[str, float]], memo: dict) -> tuple[_Fit, float]:
@@ -974,7 +1095,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # refined: a short fit does not tell which rule fits the record once converged
         rules = {f.vals.get("nb") for f in shorts}
         best = [next(f for f in shorts if f.vals.get("nb") == r) for r in rules] if len(rules) > 1 else shorts[:2]
-        fit = min(pmap(lambda f: _fit(f.vals, free + names, recs, cfg, dv, use=fold), best), key=lambda f: f.sse_train)
+        fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
+                  key=lambda f: f.sse_train)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
             # each friction effect chooses its stick rule once, at its first fit (training blocks),
             # and holds it in every later fit (swaps, the second fold, later rounds): half the starts

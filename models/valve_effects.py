@@ -32,8 +32,6 @@ import math
 from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
-from scipy.signal import lfilter
-
 from pipeline.jit import compile_cached
 
 from .errors import ModelConfigError
@@ -47,6 +45,7 @@ __all__ = [
     "actuator_pressure",
     "transmitter",
     "simulate_effects",
+    "residual_effects",
     "hide_effects",
     "parse_hide",
     "HIDE_DEFAULTS",
@@ -171,17 +170,36 @@ def actuator_pressure(p: np.ndarray, dt: float, tau: float = 0.0, theta: float =
     """Actuator pressure from the recorded pressure: dead time ``θ`` (linear interpolation between
     samples, ``p[0]`` before the record) then a first-order lag ``τ`` (exact for a pressure held
     over each step, as :func:`models.karnopp.karnopp_step` does for the V/P lag), starting at
-    rest at ``p[0]``."""
+    rest at ``p[0]``.  Compiled (:func:`_delay_lag`): a fit computes it at every simulation."""
     p = np.asarray(p, float)
-    if theta > 0:  # p(t − θ): θ/dt = n + f samples, linear between samples, p[0] before the record
-        n = min(int(theta / dt), p.size)
-        f = theta / dt - n
-        padded = np.concatenate((np.full(n + 1, p[0]), p))
-        p = (1.0 - f) * padded[1 : p.size + 1] + f * padded[: p.size]
-    if tau > 0:
-        a = math.exp(-dt / tau)
-        p = lfilter([1.0 - a], [1.0, -a], p, zi=[a * p[0]])[0]
-    return p
+    if not (theta > 0 or tau > 0):
+        return p
+    n = min(int(theta / dt), p.size) if theta > 0 else 0  # θ/dt = n + f samples
+    return _delay_lag(np.ascontiguousarray(p), theta > 0, n, theta / dt - n if theta > 0 else 0.0,
+                      tau > 0, math.exp(-dt / tau) if tau > 0 else 0.0)
+
+
+@compile_cached
+def _delay_lag(p, delay, n, f, lag, a):  # pragma: no cover - compiled
+    """:func:`actuator_pressure` in one pass, with the arithmetic of the array expressions it
+    replaced (bit for bit): the delayed sample ``(1 − f)·p[i − n] + f·p[i − n − 1]`` and the
+    lag as ``scipy.signal.lfilter([1 − a], [1, −a], ·, zi=[a·p[0]])`` computes it (its
+    transposed direct form: ``y = z + b0·x``, ``z = x·b1 − y·a1`` with ``b1 = 0``, ``a1 = −a``)."""
+    out = np.empty_like(p)
+    g = 1.0 - f
+    b0 = 1.0 - a
+    a1 = -a
+    z = a * (g * p[0] + f * p[0] if delay else p[0])  # the lag starts at rest at the delayed p[0]
+    for i in range(p.size):
+        x = p[i]
+        if delay:
+            x = g * (p[i - n] if i >= n else p[0]) + f * (p[i - n - 1] if i >= n + 1 else p[0])
+        if lag:
+            y = z + b0 * x
+            z = x * 0.0 - y * a1
+            x = y
+        out[i] = x
+    return out
 
 
 @compile_cached
@@ -209,21 +227,28 @@ def transmitter(x_stem: np.ndarray, deadband: float, y0: float | None = None) ->
 
 
 @compile_cached
-def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
+def _slide_speed(A, h, gs, fc, fs, vs, u0, uc, ec):  # pragma: no cover - compiled
     """Speed u > 0 after a sliding step: root of A·u + h·F(u) − gs = 0 with the sliding friction
     F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck), bracketed in
-    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed."""
+    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed.
+
+    ``uc``, ``ec``: a speed where ``exp(−(u/vs)²)`` was last evaluated and its value (the caller
+    keeps them from the previous call: a slide's next step starts from the speed the last one
+    converged at, where the Newton iteration evaluated it); returns (u, uc, ec) updated.  The
+    iterates and the root are those of the evaluation at every step, bit for bit."""
     hi = (gs - h * fc) / A
     if vs <= 0.0 or fs <= fc:
-        return hi
+        return hi, uc, ec
     lo = 0.0
     u = min(max(u0, 0.0), hi)
     for _ in range(30):
-        r = (u / vs) ** 2
-        e = math.exp(-r)
+        if u != uc:
+            uc = u
+            ec = math.exp(-((u / vs) ** 2))
+        e = ec
         phi = A * u + h * (fc + (fs - fc) * e) - gs
         if abs(phi) <= 1e-12 * (abs(gs) + 1e-30):
-            return u
+            return u, uc, ec
         if phi < 0.0:
             lo = u
         else:
@@ -233,13 +258,13 @@ def _slide_speed(A, h, gs, fc, fs, vs, u0):  # pragma: no cover - compiled
         if not (lo < un < hi):
             un = 0.5 * (lo + hi)
         if abs(un - u) <= 1e-15 + 1e-12 * u:
-            return un
+            return un, uc, ec
         u = un
-    return u
+    return u, uc, ec
 
 
 @compile_cached
-def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, reset, band, nsub):  # pragma: no cover - compiled
+def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, rest, bias, band, nsub, xm):  # pragma: no cover - compiled
     """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
     Stribeck sliding friction solved implicitly, and the two stick/slip events placed inside the
     step instead of on the sample grid (so that the trajectory is continuous in the parameters):
@@ -260,9 +285,10 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     discretisation error, see :func:`simulate_effects`).
 
     The transmitter reading ``y`` follows the stem through a backlash of half-width ``half``.
-    ``reset`` (same length, NaN = none) holds measured rest positions (spring coordinate of the
-    reading): at such a sample, if the stem is at rest, stem and reading are shifted together so
-    that the reading equals it (a stuck valve's whole state is its position).
+    ``rest`` (same length, NaN = none) holds measured rest positions (measured coordinate; the
+    reading's spring coordinate is ``rest + bias``): at such a sample, if the stem is at rest,
+    stem and reading are shifted together so that the reading equals it (a stuck valve's whole
+    state is its position).
 
     ``band`` (same length, N, >= 0) is the stick band of :func:`simulate_effects`: where it is 0
     the stick/slip lines are those of eq. (2) above (bit for bit); where it is ``b > 0``
@@ -281,7 +307,9 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
       are a hysteresis of at least ``b``, so noise within the band cannot break it loose, and
       the breakaway is not delayed by ``b/Ḟ`` (which a slip jump's dead time would absorb).
 
-    Returns stem position x, velocity v and reading y.
+    Returns stem position x, velocity v and the recorded position ``x_meas = y − bias`` (eq. 10);
+    given a measured position ``xm`` (same length; empty: none), its residual ``xm − x_meas``
+    in place of ``x_meas`` (what a fit needs, without two more passes over the record).
     """
     n = p.size
     xs = np.empty(n)
@@ -296,6 +324,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     fs0 = fs if vs > 0.0 else fc  # sliding friction as the speed goes to zero
     f_prev = sa * p[0] - k * x
     free = 0.0  # direction of a stop inside the stick band (0: none; the stem is held by F_s)
+    uc, ec = -1.0, 0.0  # the Stribeck term's last evaluation (see _slide_speed; none yet)
+    resid = xm.size == n
     for i in range(n):
         b = band[i]
         for _ in range(nsub):
@@ -324,7 +354,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
             else:  # slip (1st line)
                 s = 1.0 if v > 0.0 else -1.0
                 if s * g > h * fs0:
-                    v = s * _slide_speed(A, h, s * g, fc, fs, vs, s * v)
+                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, s * v, uc, ec)
+                    v = s * u
                     x = x + h * v
                 elif abs(g) <= h * fs:  # the stem stops within the step
                     v_free = (g - h * fs0 * s) / A  # where it would be without stopping (sign −s)
@@ -334,7 +365,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                         free = s
                 else:  # it reverses, with friction of the new sign
                     s = -s
-                    v = s * _slide_speed(A, h, s * g, fc, fs, vs, 0.0)
+                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, 0.0, uc, ec)
+                    v = s * u
                     x = x + h * v
             if x > x_max:
                 x = x_max
@@ -347,13 +379,14 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
             elif y - x > half:
                 y = x + half
             f_prev = sa * p[i] - k * x
-        if v == 0.0 and not math.isnan(reset[i]):
-            x += reset[i] - y
-            y = reset[i]
+        if v == 0.0 and not math.isnan(rest[i]):
+            r = rest[i] + bias
+            x += r - y
+            y = r
             f_prev = sa * p[i] - k * x
         xs[i] = x
         vsa[i] = v
-        ys[i] = y
+        ys[i] = xm[i] - (y - bias) if resid else y - bias
     return xs, vsa, ys
 
 
@@ -418,18 +451,36 @@ def simulate_effects(
     else:
         x0 = float(x0_meas) + valve.bias
     if rest_meas is None:
-        reset = np.full(p.size, np.nan)
+        rest = np.full(p.size, np.nan)
     else:
-        reset = np.ascontiguousarray(rest_meas, dtype=float) + valve.bias
-        if reset.shape != p.shape:
+        rest = np.ascontiguousarray(rest_meas, dtype=float)
+        if rest.shape != p.shape:
             raise ModelConfigError("rest_meas must have the length of p")
     band_a = np.asarray(band, dtype=float)
     if band_a.shape not in ((), p.shape) or not np.all(np.isfinite(band_a)) or np.any(band_a < 0):
         raise ModelConfigError("band must be a finite force >= 0 (N), one number or one per pressure sample")
-    x, v, y = _karnopp_kernel(pa, float(dt), valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs,
-                              valve.dv, valve.sa, x0, 0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, reset,
-                              np.array(np.broadcast_to(band_a, p.shape)), int(substeps))  # a writable copy: one compiled type
-    return EffectSim(p_act=pa, x=x, v=v, x_meas=y - valve.bias)
+    x, v, xm = _kernel(valve, pa, float(dt), x0, rest, np.array(np.broadcast_to(band_a, p.shape)),  # a writable copy: one compiled type
+                       int(substeps), _NO_MEAS)
+    return EffectSim(p_act=pa, x=x, v=v, x_meas=xm)
+
+
+_NO_MEAS = np.empty(0)
+
+
+def _kernel(valve: EffectValve, pa: np.ndarray, dt: float, x0: float, rest: np.ndarray, band: np.ndarray, substeps: int,
+            x_meas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return _karnopp_kernel(pa, dt, valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs, valve.dv, valve.sa, x0,
+                           0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, rest, valve.bias, band, substeps, x_meas)
+
+
+def residual_effects(valve: EffectValve, p: np.ndarray, dt: float, x_meas: np.ndarray, *, x0_meas: float,
+                     rest_meas: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """``x_meas − simulate_effects(valve, p, dt, x0_meas=x0_meas, rest_meas=rest_meas, band=band).x_meas``,
+    bit for bit, without its input checks and array copies: for a fit that simulates one checked
+    record hundreds of times (:mod:`models.reconcile`).  ``p``, ``x_meas``, ``rest_meas`` and
+    ``band`` are contiguous float arrays of one length (``band`` one force per sample), one step."""
+    pa = actuator_pressure(p, dt, valve.tau, valve.theta)
+    return _kernel(valve, pa, dt, float(x0_meas) + valve.bias, rest_meas, band, 1, x_meas)[2]
 
 
 # --------------------------------------------------------------------------- hidden effects

@@ -16,6 +16,7 @@ from models.valve_effects import (
     hidden_record,
     hide_effects,
     parse_hide,
+    residual_effects,
     simulate_effects,
     transmitter,
 )
@@ -41,6 +42,46 @@ def test_dead_time_and_lag_are_exact_linear_operations():
     lag = actuator_pressure(p, dt, tau=0.05)
     t = dt * (np.arange(500) - 99)  # the step is applied at sample 100, held over each step
     np.testing.assert_allclose(lag[100:], 1 - np.exp(-t[100:] / 0.05), rtol=1e-12)
+
+
+def test_the_compiled_dead_time_and_lag_compute_what_numpy_and_lfilter_compute_bit_for_bit():
+    # actuator_pressure is one compiled pass (a fit computes it at every simulation); the array
+    # expressions and scipy's lfilter it replaced are the independent reference, to the bit
+    from scipy.signal import lfilter
+
+    def reference(p, dt, tau, theta):
+        if theta > 0:
+            n = min(int(theta / dt), p.size)
+            f = theta / dt - n
+            padded = np.concatenate((np.full(n + 1, p[0]), p))
+            p = (1.0 - f) * padded[1 : p.size + 1] + f * padded[: p.size]
+        if tau > 0:
+            a = math.exp(-dt / tau)
+            p = lfilter([1.0 - a], [1.0, -a], p, zi=[a * p[0]])[0]
+        return p
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        n = int(rng.integers(1, 2000))
+        p = rng.normal(6e4, 2e4, n)
+        dt = float(rng.choice([1e-3, 2.5e-4]))
+        tau = float(rng.choice([0.0, rng.uniform(0.0, 1.0), 1e-6]))
+        theta = float(rng.choice([0.0, rng.uniform(0.0, 0.5), 3.0 * n * dt]))  # also longer than the record
+        assert np.array_equal(actuator_pressure(p, dt, tau, theta), reference(p, dt, tau, theta))
+
+
+def test_the_fit_residual_is_the_simulated_record_bit_for_bit():
+    # residual_effects (the fits' entry, no input checks) against simulate_effects, every effect on
+    valve = EffectValve(k=2e5, fc=150.0, fv=5000.0, sa=0.0445, dv=1e-4, fs=200.0, vs=2e-3, tau=0.05, theta=0.02,
+                        deadband=2e-4, bias=1e-3)
+    rng = np.random.default_rng(2)
+    p = np.repeat(rng.uniform(3e4, 9e4, 40), 100)
+    x = rng.normal(0.0, 1e-3, p.size)
+    rest = np.where(rng.random(p.size) < 0.05, x, np.nan)
+    band = rng.uniform(0.0, 20.0, p.size)
+    sim = simulate_effects(valve, p, 1e-3, x0_meas=0.0, rest_meas=rest, band=band)
+    assert np.ptp(sim.x) > 1e-3  # the stem moves
+    assert np.array_equal(residual_effects(valve, p, 1e-3, x, x0_meas=0.0, rest_meas=rest, band=band), x - sim.x_meas)
 
 
 def test_deadband_reading_stays_put_until_the_stem_moves_half_the_width_past_it():

@@ -35,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mass", type=float, default=M_KG, metavar="KG",
                    help=f"mass of the moving parts in kg, held fixed (default {M_KG})")
     p.add_argument("--threads", type=int, default=ReconcileConfig.threads, metavar="N",
-                   help="threads for the multi-start fits (default %(default)s; the result does not depend on it)")
+                   help="worker processes for the multi-start fits (default %(default)s; the result does not depend on it)")
     p.add_argument("--stick-band", type=float, default=ReconcileConfig.stick_band, metavar="SD",
                    help="stick band of the fitted models in standard deviations of the recorded-pressure noise "
                         "(default %(default)s; 0: the stick/slip rule of eq. 2 as written)")
@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(v) and v > 0):
             raise UsageError(f"{flag} {v}: must be a finite number > 0")
     if args.threads < 1:
-        raise UsageError(f"--threads {args.threads}: at least one fitting thread is needed")
+        raise UsageError(f"--threads {args.threads}: at least one fitting worker is needed")
     if not (math.isfinite(args.stick_band) and args.stick_band >= 0):
         raise UsageError(f"--stick-band {args.stick_band}: must be a finite number >= 0 (noise standard deviations)")
     data = read_valve_csv(args.data)

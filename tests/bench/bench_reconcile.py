@@ -1,16 +1,20 @@
 """Cost of ``reconcile`` (issue 8) on a 60 s record at 1 ms (60 000 samples).
 
 Acceptance (issue 8): one reconcile run on a 60 s record at 1 ms finishes in under 60 s; asserted
-on the wall time with the default two fitting threads (``ReconcileConfig.threads``; since session 8:
-before, one thread, and the process CPU time was asserted).  The process CPU time (both threads)
-is printed beside it; on the shared 2-core machine other engineers' jobs inflate the wall time,
-so the assertion holds only on a quiet machine.  Also
+on the wall time with the default two fitting workers (``ReconcileConfig.threads``: worker
+processes since session 9, threads in session 8; before, one thread, and the process CPU time was
+asserted).  The CPU time of the process and its workers is printed beside it; on the shared
+2-core machine other engineers' jobs inflate the wall time, so the assertion holds only on a
+quiet machine.  Also printed, not asserted: a 60 s version of the slowest unseen record known
+(independent draw 23, record 12 of ``accuracy_reconcile.py``: PRBS, hidden dead time 115 ms;
+the 40 s original took 65–90 s in session 8).  Also
 times, in the same run, the compiled simulator against the pure-Python one of issue 7
 (:func:`models.karnopp.simulate`) on the same record: the fits run the simulator hundreds of times.
 
 Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/bench_reconcile.py``
 """
 
+import os
 import time
 
 import numpy as np
@@ -18,11 +22,17 @@ import pytest
 
 from models.identification import ValveData
 from models.karnopp import PRESETS, simulate
-from models.reconcile import reconcile
+from models.reconcile import ReconcileConfig, reconcile
 from models.valve_effects import EffectValve, hidden_record, simulate_effects
 from models.valve_tests import isa_steps, square
 
+from .accuracy_reconcile import indep_cases, indep_record, prbs
 from .conftest import machine_note
+
+
+def _cpu() -> float:
+    t = os.times()  # the worker processes count once they have ended (reconcile ends them)
+    return t.user + t.system + t.children_user + t.children_system
 
 
 @pytest.mark.bench
@@ -39,12 +49,20 @@ def test_reconcile_60s_record_under_60s():
     for name, (params, exc, hidden) in cases.items():
         assert abs(exc.t.size - 60000) <= 10
         rec = hidden_record(params, exc, hidden, seed=7)
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, c0 = time.perf_counter(), _cpu()
         r = reconcile(ValveData(rec.t, rec.p, rec.x, "bench"))
-        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+        dt, cpu = time.perf_counter() - t0, _cpu() - c0
         worst = max(worst, dt)
         print(f"{name}: {exc.t.size} samples, reconcile {dt:.1f} s wall, {cpu:.1f} s CPU, effects {r.effects}, "
               f"RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm (noise {r.noise_floor * 1e6:.1f})")
+    case = indep_cases(23)[11]  # printed, not asserted (see the module docstring)
+    t, p, x = indep_record(case["valve"], prbs(case["seed"], 60.0), case["hidden"], *case["noise"], case["seed"])
+    t0, c0 = time.perf_counter(), _cpu()
+    r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
+    dt, cpu = time.perf_counter() - t0, _cpu() - c0
+    print(f"unseen draw 23 record 12 at 60 s (PRBS, hidden dead_time {case['hidden']['dead_time'][0]:.3f} s): "
+          f"{t.size} samples, reconcile {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s, not asserted), "
+          f"{cpu:.1f} s CPU, effects {r.effects}, RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm")
     p = PRESETS["low"].replace(tau_p=0.0)
     pc = square(periods=60.0 / 10.4).p_cmd
     ev = EffectValve.from_karnopp(p)
