@@ -1198,7 +1198,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         gain = ref.mse_h - sc.mse_h
         dreg = ref.regime_sse - sc.regime_sse
         pos = float(np.sum(np.clip(dreg, 0, None)))
-        pred = [REGIMES.index(g) for g in set(PREDICTS[eff]).union(*(PREDICTS[w] for w in with_ if w))]
+        pred = sorted(REGIMES.index(g) for g in set(PREDICTS[eff]).union(*(PREDICTS[w] for w in with_ if w)))  # one order: as_dict reproducible across processes
         in_pred = float(np.sum(np.clip(dreg[pred], 0, None)) / pos) if pos > 0 else 0.0
         reasons = []
         if not dbic > 0:
