@@ -331,6 +331,9 @@ class Prepared:
     speed_typ: float  # median sliding speed, m/s
     speed_max: float
     rest: np.ndarray  # measured rest positions where the model is re-seated (NaN elsewhere)
+    state: np.ndarray  # motion state per sample (:func:`motion_state`: +1, −1, 0 = at rest)
+    xd: np.ndarray  # stem velocity (Appendix A, :func:`models.identification.sg_derivatives`: follows fast slides too)
+    no_band: np.ndarray  # zeros: the stick band of a model without one (read only; one per record, not per simulation)
     sa: float = SA_M2  # diaphragm area the record is fitted with, m²
     p_noise: np.ndarray | None = None  # std of the recorded-pressure noise left in p_smooth, Pa per sample
 
@@ -357,7 +360,8 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
     return Prepared(
         data=data, dt=dt, p_smooth=ps, x=x, x0=float(np.median(x[:31])), labels=lab, train=split[block],
         block=block, sigma_x=noise_std(x), speed_typ=float(np.median(speed[moving])) if moving.any() else 1e-3,
-        speed_max=float(np.max(speed)), rest=rest, sa=sa, p_noise=p_noise,
+        speed_max=float(np.max(speed)), rest=rest, state=state, xd=sg_derivatives(x, dt).xd,
+        no_band=np.zeros(x.size), sa=sa, p_noise=p_noise,
     )
 
 
@@ -389,16 +393,9 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
     def band(r: Prepared) -> np.ndarray:
-        if nb > 0 and r.p_noise is not None:
-            return nb * r.sa * r.p_noise
-        if r.x.size not in _ZEROS:
-            _ZEROS[r.x.size] = np.zeros(r.x.size)
-        return _ZEROS[r.x.size]
+        return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else r.no_band
 
     return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r)) for r in recs]
-
-
-_ZEROS: dict[int, np.ndarray] = {}  # no stick band, per record length (read only)
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
@@ -578,21 +575,6 @@ def _worker_fit(task: tuple) -> _Fit:
     return _fit(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
 
 
-_MOTION: list[tuple[Prepared, np.ndarray, np.ndarray]] = []  # the last records' motion (see _motion)
-
-
-def _motion(r: Prepared) -> tuple[np.ndarray, np.ndarray]:
-    """Motion state (:func:`motion_state`) and Appendix-A velocity
-    (:func:`models.identification.sg_derivatives`) of a record's position, kept for the last
-    few records: the multi-start reads them at every force-balance start (hundreds per run)."""
-    for rec, state, xd in _MOTION:
-        if rec is r:
-            return state, xd
-    state, xd = motion_state(r.x, r.dt)[0], sg_derivatives(r.x, r.dt).xd
-    _MOTION[:] = [(r, state, xd)] + _MOTION[:3]
-    return state, xd
-
-
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
                       k_scale: float = 1.0, at: str = "tail") -> dict[str, float]:
     """Start values from force balances where slides end and from the slides themselves.
@@ -625,7 +607,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         raise ModelConfigError(f"at={at!r}: 'tail', 'head' or 'breakaway' of each rest")
     stops, breaks, slide_rows = [], [], []
     for r in recs:
-        state, xd = _motion(r)  # xd: Appendix A, follows fast slides too
+        state, xd = r.state, r.xd
         F = cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)
         runs = _runs(state)
         for j, ((a0, a1, s0), (b0, b1, s1)) in enumerate(zip(runs, runs[1:])):
@@ -635,7 +617,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                         else slice(b0 + int(0.05 / r.dt), b0 + int(0.1 / r.dt)))
                 xe = float(np.median(r.x[tail]))
                 stops.append((xe, float(np.median(F[tail])), float(s0)))
-                if j + 2 < len(runs):  # the stem breaks away again (its next run is a slide)
+                if at == "breakaway" and j + 2 < len(runs):  # the stem breaks away again (its next run is a slide)
                     breaks.append((float(np.median(r.x[b1 - max((b1 - b0) // 3, 1) : b1])), float(F[b1 - 1]),
                                    float(runs[j + 2][2])))
                 sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
