@@ -576,7 +576,7 @@ def _worker_fit(task: tuple) -> _Fit:
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
-                      k_scale: float = 1.0, at: str = "tail") -> dict[str, float]:
+                      k_scale: float = 1.0, at: str = "tail", fast_slides: bool = False) -> dict[str, float]:
     """Start values from force balances where slides end and from the slides themselves.
 
     Where a slide ends, friction holds the stem at the edge of its stick band:
@@ -654,11 +654,22 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         kb, fc = np.linalg.lstsq(np.column_stack([np.ones(len(S)), S[:, 2]]), S[:, 1] - k * S[:, 0], rcond=None)[0]
         fc = max(float(fc), 0.0)
     R = np.concatenate(slide_rows) if slide_rows else np.zeros((0, 4))
-    den = float(R[:, 3] @ R[:, 3]) if len(R) else 0.0
-    rest_force = R[:, 0] - k * R[:, 1] - kb - fc * R[:, 2]  # what eq. 4 leaves to F_v·ẋ
-    fv = max(float(rest_force @ R[:, 3]) / den, 0.0) if den > 0 else 0.0
+    top = fs if at == "breakaway" else fc  # the friction that holds the stem at rest
+    if fast_slides:  # F_c and F_v together from the slides faster than their median speed
+        R = np.concatenate([np.column_stack([cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)[sel], r.x[sel],
+                                             r.state[sel], r.xd[sel]])
+                            for r in recs for sel in [np.flatnonzero((r.state != 0) & (np.sign(r.xd) == r.state))]])
+        fast = R[np.abs(R[:, 3]) > np.median(np.abs(R[:, 3]))] if len(R) else R
+        if len(fast) < 2 or len(set(fast[:, 2])) < 2:
+            raise IdentificationError("the sliding balance needs slides in both directions")
+        fc, fv = np.linalg.lstsq(fast[:, 2:], fast[:, 0] - k * fast[:, 1] - kb, rcond=None)[0]
+        fc, fv = min(max(float(fc), 0.0), float(top)), max(float(fv), 0.0)
+    else:
+        den = float(R[:, 3] @ R[:, 3]) if len(R) else 0.0
+        rest_force = R[:, 0] - k * R[:, 1] - kb - fc * R[:, 2]  # what eq. 4 leaves to F_v·ẋ
+        fv = max(float(rest_force @ R[:, 3]) / den, 0.0) if den > 0 else 0.0
     out = {"k": float(k), "fc": float(fc), "fv": float(fv), "bias": float(kb / k)}
-    return {**out, "dfs": float(fs - fc)} if at == "breakaway" else out
+    return {**out, "dfs": float(top - fc)} if at == "breakaway" or fast_slides else out
 
 
 def _balance(recs: list[Prepared], cfg: ReconcileConfig, vals: dict[str, float], **kw) -> dict[str, float]:
@@ -716,11 +727,12 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
                 out += [{**extra, "dfs": f * fc0} for f in (0.15, 0.4, 1.0)]
             else:
                 out += [{**extra, "dfs": f * fc0, "vs": g * vt} for f in (0.3, 0.8) for g in (0.5, 2.0)]
-        try:  # F_c and F_s from the balances at the stops and at the breakaways (eq. 11–12)
-            joint = _balance(recs, cfg, vals, tau=vals.get("tau", 0.0), theta=vals.get("theta", 0.0), at="breakaway")
+        for kw in ({"at": "breakaway"}, {"at": "breakaway", "fast_slides": True}, {"at": "head", "fast_slides": True}):
+            try:  # F_c and F_s from the balances at the stops and at the breakaways (eq. 11–12)
+                joint = _balance(recs, cfg, vals, tau=vals.get("tau", 0.0), theta=vals.get("theta", 0.0), **kw)
+            except IdentificationError:
+                continue
             out += [joint] if effect == "slip_jump" else [{**joint, "vs": g * vt} for g in (0.5, 2.0)]
-        except IdentificationError:
-            pass
         dv0 = vals.get("dv", dv)
         if rule:
             rules = [dict(rule)]
