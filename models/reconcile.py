@@ -601,7 +601,15 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     result then carries ``dfs = F_s − F_c`` (start values of the friction candidates: the
     baseline's Coulomb friction is a compromise between ``F_c`` and ``F_s``, and its ``k``, ``x̄``
     and ``F_v`` compensate it; on an unseen ramp record with ``F_s/F_c = 1.58`` no start built on
-    them reached the truth's basin).
+    them reached the truth's basin).  ``fast_slides``: ``F_c`` and ``F_v`` together by least squares
+    of ``F_c·dir + F_v·ẋ = S_a·p − k·(x_meas + x̄)`` over the slides faster than their median
+    speed (eq. 4 without inertia, the ``k``, ``x̄`` of the balance at rest), with ``dfs`` the
+    friction at rest (``F_s`` of the breakaway balance, or the head's ``F_c``) minus that ``F_c``.
+    With Stribeck friction falling steeply from ``F_s`` the balances at rest read about ``F_s``;
+    the sliding friction at the record's speeds, ``F_c + F_v·v``, then went into the baseline's
+    ``F_c`` with ``F_v`` near 0, and no start reached a truth with a large ``F_v`` (unseen draw 43
+    record 6: truth ``F_v`` 15.5 kN·s/m, the baseline's 54 N·s/m; a start from the fast slides
+    fitted 68 µm on the training blocks, the best of the others 126).
     """
     if at not in ("tail", "head", "breakaway"):
         raise ModelConfigError(f"at={at!r}: 'tail', 'head' or 'breakaway' of each rest")
@@ -713,7 +721,10 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     band (a valve whose slides end at DV, as the paper's model, is fitted by its own rule).  The
     rule is one held choice (``nb``, the band in noise standard deviations, with ``dv``),
     counted as one parameter in the penalty as DV was.  ``rule``: the effect's stick rule (``nb``,
-    ``dv``) once the search has chosen it at the effect's first fit; only that rule is then tried."""
+    ``dv``) once the search has chosen it at the effect's first fit; only that rule is then tried.
+    The friction effects also start from the force balances at rest (their ``F_c`` and ``k``, ``x̄``,
+    ``F_v``), from the joint balance at the stops and breakaways (``F_s`` too), and from the
+    sliding balance of the fast slides (``F_c`` and ``F_v`` together; see :func:`_initial_baseline`)."""
     fc, k = vals["fc"], vals["k"]
     vt = float(np.median([r.speed_typ for r in recs]))
     if effect in ("slip_jump", "stribeck"):
@@ -728,7 +739,8 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
             else:
                 out += [{**extra, "dfs": f * fc0, "vs": g * vt} for f in (0.3, 0.8) for g in (0.5, 2.0)]
         for kw in ({"at": "breakaway"}, {"at": "breakaway", "fast_slides": True}, {"at": "head", "fast_slides": True}):
-            try:  # F_c and F_s from the balances at the stops and at the breakaways (eq. 11–12)
+            try:  # F_c and F_s from the balances at the stops and at the breakaways (eq. 11–12), or F_c
+                # and F_v from the fast slides with F_s from the balance at rest
                 joint = _balance(recs, cfg, vals, tau=vals.get("tau", 0.0), theta=vals.get("theta", 0.0), **kw)
             except IdentificationError:
                 continue
