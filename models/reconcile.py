@@ -1019,6 +1019,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
 
     recs = [prepare(data, blk(data), cfg.sa)] + ([prepare(signature, blk(signature), cfg.sa)] if signature is not None else [])
     dv = 0.01 * max(r.speed_max for r in recs)  # DV: 1 % of the largest speed (section 3)
+    # the record's slow sliding speeds (10th percentile of the Appendix-A speed while moving)
+    v_slow = min(float(np.percentile(np.abs(r.xd[r.state != 0]), 10)) if np.any(r.state != 0) else 0.0 for r in recs)
     n_all = sum(r.x.size for r in recs)
     sigma = math.sqrt(sum(r.sigma_x**2 * r.x.size for r in recs) / n_all)
     noise_pow = max(sigma**2, 1e-24)
@@ -1277,6 +1279,16 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             message = "no further effect passes the held-out test" if accepted else "no missing effect found"
             break
         best_c, best_v, best_free = max(passing, key=lambda cv: cv[0].delta_bic)
+        slip = next((cvf for cvf in passing if cvf[0].effect == "slip_jump"), None)
+        unsampled = ""
+        if best_c.effect == "stribeck" and slip is not None and 3.0 * best_v["vs"] < v_slow:
+            # slip_jump is Stribeck friction with v_s -> 0: a Stribeck curve that has reached F_c
+            # (within exp(-9)) below the record's slow sliding speeds is never sampled between F_s
+            # and F_c, and the data cannot tell it from a slip jump (one parameter fewer)
+            unsampled = (f"; stribeck (ΔBIC {best_c.delta_bic:.1f}) is not named: its friction reaches F_c below "
+                         f"3·v_s = {3e3 * best_v['vs']:.2f} mm/s, under the record's slow slides "
+                         f"({1e3 * v_slow:.2f} mm/s, 10th percentile), where a slip jump is the same model")
+            best_c, best_v, best_free = slip
         if refits < _MAX_REFITS:
             # before the effect is credited with the gain: the current model refitted from the
             # winner's parameters with the effect taken out.  If that fits the training blocks
@@ -1303,6 +1315,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             f"ΔBIC {best_c.delta_bic:.1f} with n_eff {best_c.n_eff:.0f}; held-out blocks improved, p {best_c.t_stat:.2g} < {best_c.t_crit:.2g}; "
             f"{best_c.gain_in_predicted:.0%} of the gain in {', '.join(top)}"
         )
+        evidence += unsampled
         others = sorted((c for c, _, _ in cands if c is not best_c), key=lambda c: -c.delta_bic)
         if others:
             o = others[0]
