@@ -227,20 +227,84 @@ def transmitter(x_stem: np.ndarray, deadband: float, y0: float | None = None) ->
 
 
 @compile_cached
-def _slide_speed(A, h, gs, fc, fs, vs, u0, uc, ec):  # pragma: no cover - compiled
-    """Speed u > 0 after a sliding step: root of A·u + h·F(u) − gs = 0 with the sliding friction
-    F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck), bracketed in
-    (0, (gs − h·fc)/A] and found by safeguarded Newton from the previous speed.
+def _fold_speeds(A, h, fc, fs, vs):  # pragma: no cover - compiled
+    """(u1, u2): φ(u) = A·u + h·F(u) − gs falls on [u1, u2] and is monotone elsewhere, where the
+    Stribeck friction F falls with speed faster than ``A/h``; (−1, −1) where φ is monotone.
+    Constant over a simulation (φ' does not depend on gs)."""
+    if vs <= 0.0 or fs <= fc:
+        return -1.0, -1.0
+    c = 2.0 * h * (fs - fc) / (vs * vs)  # φ'(u) = A − c·u·exp(−(u/vs)²)
+    w = vs / math.sqrt(2.0)  # where u·exp(−(u/vs)²) peaks
+    if c * w * math.exp(-0.5) <= A:
+        return -1.0, -1.0
+    q = A / c  # u1, u2 solve u·exp(−(u/vs)²) = q
+    a1, b1, a2, b2 = 0.0, w, w, 2.0 * w
+    while b2 * math.exp(-((b2 / vs) ** 2)) > q:
+        b2 *= 2.0
+    for _ in range(60):  # bisection for both crossings
+        m1 = 0.5 * (a1 + b1)
+        if m1 * math.exp(-((m1 / vs) ** 2)) > q:
+            b1 = m1
+        else:
+            a1 = m1
+        m2 = 0.5 * (a2 + b2)
+        if m2 * math.exp(-((m2 / vs) ** 2)) > q:
+            a2 = m2
+        else:
+            b2 = m2
+    return a1, b2  # φ is monotone on [0, u1] and on [u2, ∞)
+
+
+@compile_cached
+def _slide_speed(A, h, gs, fc, fs, vs, u0, u1, u2, uc, ec):  # pragma: no cover - compiled
+    """Speed u > 0 of a stem that slides on through a step from speed ``u0`` >= 0, or −1 if it
+    stops: the root of φ(u) = A·u + h·F(u) − gs = 0 that the stem reaches, with the sliding
+    friction F(u) = fc + (fs − fc)·exp(−(u/vs)²) (first line of eq. 2 with Stribeck).
+
+    φ(u0) < 0: the stem speeds up, to the first root above ``u0``; φ(u0) >= 0: it slows down, to
+    the first root below ``u0``, and stops if there is none.  Where friction falls with speed
+    faster than ``A/h`` φ is not monotone: it rises, falls on [u1, u2] and rises again
+    (``u1``, ``u2`` from :func:`_fold_speeds`, −1 where φ is monotone), so a stem sliding at a
+    speed where friction is well below F_s slides on even where φ(0) > 0 (the net force and
+    momentum would not break a stem at rest loose, ``gs < h·fs``).  A stop test on φ(0) alone
+    stopped such slides at every step: the stem stuck and waited for F_s, a staircase the valve
+    does not make (used-draw records with a steep Stribeck curve: 17–659 µm RMS from 64
+    sub-steps, ACCURACY.md issue 8 session 9).  The root is bracketed on a segment where φ is
+    monotone and found by safeguarded Newton from the previous speed; on a monotone φ the
+    iterates are those of the earlier solve, bit for bit.  Coulomb friction (``vs <= 0`` or
+    ``fs <= fc``): F = fc, the one root (gs − h·fc)/A if positive.
 
     ``uc``, ``ec``: a speed where ``exp(−(u/vs)²)`` was last evaluated and its value (the caller
     keeps them from the previous call: a slide's next step starts from the speed the last one
-    converged at, where the Newton iteration evaluated it); returns (u, uc, ec) updated.  The
-    iterates and the root are those of the evaluation at every step, bit for bit."""
-    hi = (gs - h * fc) / A
+    converged at); returns (u, uc, ec) updated."""
     if vs <= 0.0 or fs <= fc:
-        return hi, uc, ec
+        return ((gs - h * fc) / A if gs > h * fc else -1.0), uc, ec
+    hi = (gs - h * fc) / A  # φ(hi) = h·(F(hi) − fc) >= 0
+    phi0 = h * fs - gs
+    if u1 < 0.0 and phi0 >= 0.0:  # φ monotone: a root iff φ(0) < 0
+        return -1.0, uc, ec
+    if hi <= 0.0:
+        return -1.0, uc, ec
     lo = 0.0
     u = min(max(u0, 0.0), hi)
+    if u1 >= 0.0:  # φ falls on [u1, u2]: the bracket of the root on the stem's path
+        if u != uc:
+            uc = u
+            ec = math.exp(-((u / vs) ** 2))
+        pu = A * u + h * (fc + (fs - fc) * ec) - gs
+        if pu < 0.0:  # speeds up: the first root above u0
+            if u < u1 and A * u1 + h * (fc + (fs - fc) * math.exp(-((u1 / vs) ** 2))) - gs >= 0.0:
+                lo, hi = u, min(u1, hi)
+            else:
+                lo = max(u, min(u2, hi))
+        else:  # slows down: the first root below u0, if any
+            if u > u2 and A * u2 + h * (fc + (fs - fc) * math.exp(-((u2 / vs) ** 2))) - gs < 0.0:
+                lo, hi = u2, u
+            elif phi0 < 0.0:
+                hi = min(u, u1)
+            else:
+                return -1.0, uc, ec
+        u = min(max(u, lo), hi)
     for _ in range(30):
         if u != uc:
             uc = u
@@ -325,6 +389,7 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     f_prev = sa * p[0] - k * x
     free = 0.0  # direction of a stop inside the stick band (0: none; the stem is held by F_s)
     uc, ec = -1.0, 0.0  # the Stribeck term's last evaluation (see _slide_speed; none yet)
+    u1, u2 = _fold_speeds(A, h, fc, fs, vs)  # where the step equation is not monotone (see _slide_speed)
     resid = xm.size == n
     for i in range(n):
         b = band[i]
@@ -353,8 +418,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                     free = 0.0
             else:  # slip (1st line)
                 s = 1.0 if v > 0.0 else -1.0
-                if s * g > h * fs0:
-                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, s * v, uc, ec)
+                u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, s * v, u1, u2, uc, ec)
+                if u > 0.0:
                     v = s * u
                     x = x + h * v
                 elif abs(g) <= h * fs:  # the stem stops within the step
@@ -365,8 +430,8 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                         free = s
                 else:  # it reverses, with friction of the new sign
                     s = -s
-                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, 0.0, uc, ec)
-                    v = s * u
+                    u, uc, ec = _slide_speed(A, h, s * g, fc, fs, vs, 0.0, u1, u2, uc, ec)
+                    v = s * max(u, 0.0)
                     x = x + h * v
             if x > x_max:
                 x = x_max

@@ -194,6 +194,33 @@ def test_force_balance_at_the_head_of_each_rest_recovers_spring_and_friction_on_
         pass
 
 
+def test_sliding_balance_of_the_fast_slides_recovers_coulomb_and_viscous_friction_under_steep_stribeck():
+    """With Stribeck friction falling steeply from F_s the balances at rest read about F_s, and
+    a baseline with F_s = F_c puts the sliding friction at the record's speeds, F_c + F_v·v, into
+    its F_c with F_v near 0.  The slides faster than their median speed, far above v_s, see
+    F_c + F_v·v: least squares of both over them (``fast_slides=True``) give back F_c and F_v.
+    Planted truth: a steep curve (F_s/F_c 1.5, v_s 7 mm/s, F_v 15 kN·s/m, m 2.8 kg) on ramps,
+    simulated with 32 sub-steps."""
+    dt = 1e-3
+    rng = np.random.default_rng(5)
+    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 30))]
+    t = dt * np.arange(int(60.0 / dt))
+    p = pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size)))
+    valve = EffectValve(k=1.5e5, fc=630.0, fs=945.0, vs=7e-3, fv=1.5e4, m=2.8, sa=0.06, bias=2e-3, dv=1e-6)
+    x = simulate_effects(valve, actuator_pressure(p, dt, 0.05, 0.0), dt, substeps=32).x_meas  # a V/P lag smooths the ramps' corners
+    noise = np.random.default_rng(6)
+    recs = [prepare(ValveData(t, p + 100.0 * noise.standard_normal(t.size), x + 10e-6 * noise.standard_normal(t.size),
+                              "ramps"), 0.5, valve.sa)]
+    cfg = ReconcileConfig(sa=valve.sa)
+    plain = _initial_baseline(recs, cfg, at="breakaway")
+    assert plain["fv"] < 0.3 * valve.fv  # what the balance at rest leaves to F_v: the planted trap
+    fast = _initial_baseline(recs, cfg, at="breakaway", fast_slides=True)
+    assert fast["k"] == pytest.approx(valve.k, rel=0.15)
+    assert fast["fc"] == pytest.approx(valve.fc, rel=0.25)
+    assert 0.5 * valve.fv < fast["fv"] < 2.0 * valve.fv
+    assert fast["fc"] + fast["dfs"] == pytest.approx(valve.fs, rel=0.25)
+
+
 def _fast_edges(theta: float) -> tuple[ValveData, float]:
     """20 s of raw-command PRBS edges (60 kPa, holds 0.5–2.5 s) on a fast valve (F_v/k 0.12 s,
     m/F_v 0.05 ms), simulated with 32 sub-steps per sample — within 0.7 µm of 256 sub-steps, see

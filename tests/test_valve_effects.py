@@ -246,7 +246,6 @@ def test_stick_band_zero_is_the_band_free_model_and_bad_bands_are_refused():
             simulate_effects(valve, p, 1e-3, band=bad)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (issue 8, session 9): the one-step kernel stops a slide whenever s·g <= h·F_s, so a steep-Stribeck stem sticks at every step; fixed on branch s9-slide2 (s9-slide on the current kernel), not merged (the verdicts got worse, ACCURACY.md)")
 def test_steep_stribeck_slide_follows_a_pressure_ramp_without_sticking():
     # planted truth: under a pressure ramp a sliding stem settles at the speed that keeps the
     # spring force following the ramp, u* = (S_a·dp/dt)/k, where Stribeck friction has fallen to
