@@ -167,14 +167,25 @@ def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float, dt: fl
         # still runs at the end of travel: their median within the extreme sample's noise reach
         near = [push * (x_end - m) <= tol + 6 * sx for m in med]
         held = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if n]
+        # how far the pressure pushes on into the end after the stem arrived there (it arrived
+        # sliding, at the edge of its friction band: friction alone lets a further push move it)
+        def pushed_on(a: int, b: int) -> float:  # on 0.05 s medians: the pressure noise stays out
+            m = np.median(p[a : a + ((b - a) // trim) * trim].reshape(-1, trim), axis=1)
+            return float(np.max(push * (m - m[0])))
+
+        push_on = [pushed_on(a, b) for (a, b), n in zip(runs, near) if n]
         elsewhere = [float(np.ptp(p[a:b])) for (a, b), n in zip(runs, near) if not n]
         if elsewhere and held:
             band = max(elsewhere)
             hold = max(held)
             # the band seen elsewhere only bounds 2·F_s/S_a from below (a square wave's holds see
             # little pressure change), so a stop also needs the held range to be a large part of
-            # the record's whole pressure span, as in the fallback below
-            if hold > 2.0 * band and hold > 0.25 * p_span:
+            # the record's whole pressure span, as in the fallback below, and the pressure to push
+            # on into the end after the stem arrived by more than half that band (a slip jump's
+            # stem stops at F_c and holds a further push up to F_s − F_c): a stem held at the top of a PRBS while the
+            # pressure falls to the low level and comes back is held by friction (unseen draw 53
+            # record 4, Stribeck friction: the pressure never rose above its arrival level there)
+            if hold > 2.0 * band and hold > 0.25 * p_span and max(push_on) > 0.5 * band:
                 raise IdentificationError(
                     f"{name}: travel saturated: the stem is held at its {side} stop "
                     f"({np.median([m for m, n in zip(med, near) if n]):.6g} m) while the "

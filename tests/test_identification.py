@@ -270,3 +270,15 @@ def test_small_pressure_wobble_at_the_top_is_friction_not_a_stop():
     top = slice(6 * 2000, None)
     assert np.ptp(x[top]) < 1e-4 and x[top].mean() >= x.max() - 1e-4   # planted: held at the top
     check_record(ValveData(t, p, x, "wobble"))  # accepted
+
+
+def test_stem_held_at_the_top_while_the_pressure_falls_back_and_returns_is_friction_not_a_stop():
+    """A PRBS-like record: the flat holds elsewhere barely vary the pressure (0.5 kPa), so the band
+    seen elsewhere is far below the true 2·F_s/S_a = 40 kPa.  At the highest position the pressure
+    falls 35 kPa and comes back twice, inside the true band and more than a quarter of the 60 kPa
+    span, but it never pushes on above the level the stem arrived at: friction holds the stem there
+    (a travel stop would show the pressure pushing further into it), and the record is accepted."""
+    t, p, x = _planted_steps([100e3, 100.5e3, 160e3, 125e3, 160e3, 125e3, 160e3])
+    top = slice(2 * 2000, None)
+    assert np.ptp(x[top]) < 1e-4 and x[top].mean() >= x.max() - 1e-4   # planted: held at the top
+    check_record(ValveData(t, p, x, "prbs-top"))  # accepted
