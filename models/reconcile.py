@@ -613,10 +613,13 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     """
     if at not in ("tail", "head", "breakaway"):
         raise ModelConfigError(f"at={at!r}: 'tail', 'head' or 'breakaway' of each rest")
-    stops, breaks, slide_rows = [], [], []
+    stops, breaks, slide_rows, moving_rows = [], [], [], []
     for r in recs:
         state, xd = r.state, r.xd
         F = cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)
+        if fast_slides:  # every sample sliding in its run's direction
+            sel = np.flatnonzero((state != 0) & (np.sign(xd) == state))
+            moving_rows.append(np.column_stack([F[sel], r.x[sel], state[sel], xd[sel]]))
         runs = _runs(state)
         for j, ((a0, a1, s0), (b0, b1, s1)) in enumerate(zip(runs, runs[1:])):
             if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt):
@@ -664,9 +667,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     R = np.concatenate(slide_rows) if slide_rows else np.zeros((0, 4))
     top = fs if at == "breakaway" else fc  # the friction that holds the stem at rest
     if fast_slides:  # F_c and F_v together from the slides faster than their median speed
-        R = np.concatenate([np.column_stack([cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)[sel], r.x[sel],
-                                             r.state[sel], r.xd[sel]])
-                            for r in recs for sel in [np.flatnonzero((r.state != 0) & (np.sign(r.xd) == r.state))]])
+        R = np.concatenate(moving_rows)
         fast = R[np.abs(R[:, 3]) > np.median(np.abs(R[:, 3]))] if len(R) else R
         if len(fast) < 2 or len(set(fast[:, 2])) < 2:
             raise IdentificationError("the sliding balance needs slides in both directions")
