@@ -223,6 +223,18 @@ def test_sliding_balance_of_the_fast_slides_recovers_coulomb_and_viscous_frictio
     assert fast["fc"] + fast["dfs"] == pytest.approx(valve.fs, rel=0.25)
 
 
+def _prbs(n: int, lo: float, hi: float, rng: np.random.Generator) -> np.ndarray:
+    """``n`` samples at 1 ms of a two-level pressure (Pa) holding each level 0.5–2.5 s, low first."""
+    p = np.empty(n)
+    i = s = 0
+    while i < n:
+        hold = 500 * int(rng.integers(1, 6))
+        p[i : i + hold] = hi if s else lo
+        i += hold
+        s ^= 1
+    return p
+
+
 def test_a_lag_absorbed_in_the_spring_is_started_at_the_balance_spring():
     """A two-level PRBS behind a V/P lag leaves the spring unidentified by the balances at rest (two
     force levels); a baseline may then take a spring a quarter of the truth's and absorb a long
@@ -231,15 +243,8 @@ def test_a_lag_absorbed_in_the_spring_is_started_at_the_balance_spring():
     F_v 40 kN·s/m, lag 0.39 s; the current model is the truth's Karnopp part with k/4 (bias moved
     to keep the median position), as a baseline fitted it on an unseen record of this kind."""
     dt = 1e-3
-    rng = np.random.default_rng(11)
     n = 40_000
-    p = np.empty(n)
-    i = s = 0
-    while i < n:
-        hold = 500 * int(rng.integers(1, 6))
-        p[i : i + hold] = 1.35e5 if s else 1.0e5
-        i += hold
-        s ^= 1
+    p = _prbs(n, 1.0e5, 1.35e5, np.random.default_rng(11))
     p_vp = actuator_pressure(p, dt, 0.3, 0.0)  # the V/P output is what is recorded
     truth = EffectValve(k=2.77e5, fc=337.0, fv=4.0e4, m=1.8, sa=0.03, bias=1.3e-3, dv=1e-6, tau=0.39)
     x = simulate_effects(truth, p_vp, dt, substeps=8).x_meas
@@ -266,13 +271,7 @@ def _fast_edges(theta: float) -> tuple[ValveData, float]:
     ``test_substeps_converge_to_the_step_response_of_eq_1`` — with 5 µm / 100 Pa noise."""
     dt, n = 1e-3, 20_000
     rng = np.random.default_rng(3)
-    p = np.empty(n)
-    i = s = 0
-    while i < n:
-        hold = 500 * int(rng.integers(1, 6))
-        p[i : i + hold] = 1.6e5 if s else 1.1e5
-        i += hold
-        s ^= 1
+    p = _prbs(n, 1.1e5, 1.6e5, rng)
     valve = EffectValve(k=2.0e5, fc=480.0, fv=2.4e4, m=1.2, sa=0.06, bias=1e-3, dv=1e-6, theta=theta)
     x = simulate_effects(valve, p, dt, substeps=32).x_meas
     t = dt * np.arange(n)
