@@ -49,14 +49,16 @@ def plant_run():
         client.put(f"plant/{bad_loop}/pv", payload)
     client.put(f"plant/{bad_loop}/temperature", b'{"t": 1750000000, "v": 1.0}')
 
-    def status():
-        replies = list(client.get("loopwatch/e2e/status", timeout=5.0))
-        return json.loads(replies[0].ok.payload.to_bytes())
+    def status():  # None when no reply came within the timeout (a loaded machine): asked again below
+        replies = [r for r in client.get("loopwatch/e2e/status", timeout=5.0) if r.ok]
+        return json.loads(replies[0].ok.payload.to_bytes()) if replies else None
 
     deadline = time.monotonic() + 60
     st = status()
     while time.monotonic() < deadline:
-        st = status()
+        st = status() or st
+        if st is None:
+            continue
         done = all(st["loops"].get(lp.loop_id, {}).get("windows") == N_WINDOWS for lp in loops)
         if done and sum(st["loops"][bad_loop]["rejected"].values()) == 5:
             break
