@@ -28,43 +28,47 @@ def plant_run():
     settings = load_settings(None, instance="e2e", sample_time_s=1.0,
                              zenoh={"mode": "peer", "listen": [ENDPOINT]}, analysis={"workers": 1})
     running = start_monitor(settings)
-    client = open_session("peer", connect=[ENDPOINT])
-    alerts, lock = [], threading.Lock()
+    try:  # a failure before the monitor is closed must not leave it running (its port, a hung interpreter)
+        client = open_session("peer", connect=[ENDPOINT])
+        alerts, lock = [], threading.Lock()
 
-    def on_alert(sample):
-        with lock:
-            alerts.append((str(sample.key_expr), json.loads(sample.payload.to_bytes())))
+        def on_alert(sample):
+            with lock:
+                alerts.append((str(sample.key_expr), json.loads(sample.payload.to_bytes())))
 
-    sub = client.declare_subscriber("loopwatch/alerts/**", on_alert)
-    alive_events = []
-    lsub = client.liveliness().declare_subscriber("loopwatch/e2e/alive",
-                                                  lambda s: alive_events.append(str(s.kind)), history=True)
-    time.sleep(0.5)
-    loops = make_plant(6, duration_s=DURATION)          # one loop of each case of the mix
-    PlantPublisher(client, loops[:3], fmt="binary", batch=50, speed=float("inf"), t0=T0).run()
-    PlantPublisher(client, loops[3:], fmt="json", batch=20, speed=float("inf"), t0=T0).run()
-    bad_loop = loops[0].loop_id
-    for payload in (b"{garbage", b'{"t": 1750000000, "v": "high"}', b'{"t": 1750000000, "v": NaN}',
-                    b'{"t": 12, "v": 1.0}'):
-        client.put(f"plant/{bad_loop}/pv", payload)
-    client.put(f"plant/{bad_loop}/temperature", b'{"t": 1750000000, "v": 1.0}')
+        sub = client.declare_subscriber("loopwatch/alerts/**", on_alert)
+        alive_events = []
+        lsub = client.liveliness().declare_subscriber("loopwatch/e2e/alive",
+                                                      lambda s: alive_events.append(str(s.kind)), history=True)
+        time.sleep(0.5)
+        loops = make_plant(6, duration_s=DURATION)          # one loop of each case of the mix
+        PlantPublisher(client, loops[:3], fmt="binary", batch=50, speed=float("inf"), t0=T0).run()
+        PlantPublisher(client, loops[3:], fmt="json", batch=20, speed=float("inf"), t0=T0).run()
+        bad_loop = loops[0].loop_id
+        for payload in (b"{garbage", b'{"t": 1750000000, "v": "high"}', b'{"t": 1750000000, "v": NaN}',
+                        b'{"t": 12, "v": 1.0}'):
+            client.put(f"plant/{bad_loop}/pv", payload)
+        client.put(f"plant/{bad_loop}/temperature", b'{"t": 1750000000, "v": 1.0}')
 
-    def status():  # None when no reply came within the timeout (a loaded machine): asked again below
-        replies = [r for r in client.get("loopwatch/e2e/status", timeout=5.0) if r.ok]
-        return json.loads(replies[0].ok.payload.to_bytes()) if replies else None
+        def status():  # None when no reply came within the timeout (a loaded machine): asked again below
+            replies = [r for r in client.get("loopwatch/e2e/status", timeout=5.0) if r.ok]
+            return json.loads(replies[0].ok.payload.to_bytes()) if replies else None
 
-    deadline = time.monotonic() + 60
-    st = status()
-    while time.monotonic() < deadline:
-        st = status() or st
-        if st is None:
-            continue
-        done = all(st["loops"].get(lp.loop_id, {}).get("windows") == N_WINDOWS for lp in loops)
-        if done and sum(st["loops"][bad_loop]["rejected"].values()) == 5:
-            break
+        deadline = time.monotonic() + 60
+        st = status()
+        while time.monotonic() < deadline:
+            st = status() or st
+            if st is None:
+                continue
+            done = all(st["loops"].get(lp.loop_id, {}).get("windows") == N_WINDOWS for lp in loops)
+            if done and sum(st["loops"][bad_loop]["rejected"].values()) == 5:
+                break
+            time.sleep(0.3)
         time.sleep(0.3)
-    time.sleep(0.3)
-    alive = [str(r.ok.key_expr) for r in client.liveliness().get("loopwatch/*/alive", timeout=2.0) if r.ok]
+        alive = [str(r.ok.key_expr) for r in client.liveliness().get("loopwatch/*/alive", timeout=2.0) if r.ok]
+    except BaseException:
+        running.close()
+        raise
     running.close()
     time.sleep(0.5)
     result = dict(loops=loops, alerts=list(alerts), status=st, alive=alive, alive_events=list(alive_events),
