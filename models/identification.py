@@ -182,9 +182,10 @@ def _check_saturation(name: str, p: np.ndarray, x: np.ndarray, sx: float, dt: fl
             # little pressure change), so a stop also needs the held range to be a large part of
             # the record's whole pressure span, as in the fallback below, and the pressure to push
             # on into the end after the stem arrived by more than half that band (a slip jump's
-            # stem stops at F_c and holds a further push up to F_s − F_c): a stem held at the top of a PRBS while the
-            # pressure falls to the low level and comes back is held by friction (unseen draw 53
-            # record 4, Stribeck friction: the pressure never rose above its arrival level there)
+            # stem stops at F_c and holds a further push up to F_s − F_c): a stem held at the top
+            # of a PRBS while the pressure falls to the low level and comes back is held by
+            # friction (unseen draw 53 record 4, Stribeck friction: the pressure never rose above
+            # its arrival level there)
             if hold > 2.0 * band and hold > 0.25 * p_span and max(push_on) > 0.5 * band:
                 raise IdentificationError(
                     f"{name}: travel saturated: the stem is held at its {side} stop "

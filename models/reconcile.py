@@ -382,6 +382,11 @@ def _to_valve(vals: dict[str, float], cfg: ReconcileConfig, dv: float) -> Effect
     )
 
 
+def _far_spring(k: float, k_ref: float) -> bool:
+    """``k`` more than a factor 2 from ``k_ref``: another basin of the spring (see :func:`_grid`)."""
+    return not 0.5 < k / k_ref < 2.0
+
+
 def _effect_names(effect: str) -> tuple[str, ...]:
     return tuple("dfs" if n == "fs" else n for n in EFFECT_PARAMS[effect])
 
@@ -631,8 +636,9 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                 if at == "breakaway" and j + 2 < len(runs):  # the stem breaks away again (its next run is a slide)
                     breaks.append((float(np.median(r.x[b1 - max((b1 - b0) // 3, 1) : b1])), float(F[b1 - 1]),
                                    float(runs[j + 2][2])))
-                sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
-                slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
+                if not fast_slides:  # F_v from the slides that end at a rest (below)
+                    sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
+                    slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
     if len(stops) < 2:
         raise IdentificationError(
             f"{len(stops)} slide(s) ending at rest: the record needs the stem to slide and stop in both directions"
@@ -664,7 +670,6 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         k *= k_scale
         kb, fc = np.linalg.lstsq(np.column_stack([np.ones(len(S)), S[:, 2]]), S[:, 1] - k * S[:, 0], rcond=None)[0]
         fc = max(float(fc), 0.0)
-    R = np.concatenate(slide_rows) if slide_rows else np.zeros((0, 4))
     top = fs if at == "breakaway" else fc  # the friction that holds the stem at rest
     if fast_slides:  # F_c and F_v together from the slides faster than their median speed
         R = np.concatenate(moving_rows)
@@ -674,6 +679,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         fc, fv = np.linalg.lstsq(fast[:, 2:], fast[:, 0] - k * fast[:, 1] - kb, rcond=None)[0]
         fc, fv = min(max(float(fc), 0.0), float(top)), max(float(fv), 0.0)
     else:
+        R = np.concatenate(slide_rows) if slide_rows else np.zeros((0, 4))
         den = float(R[:, 3] @ R[:, 3]) if len(R) else 0.0
         rest_force = R[:, 0] - k * R[:, 1] - kb - fc * R[:, 2]  # what eq. 4 leaves to F_v·ẋ
         fv = max(float(rest_force @ R[:, 3]) / den, 0.0) if den > 0 else 0.0
@@ -768,7 +774,7 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
             except IdentificationError:
                 continue
             out.append({key: t, **b})
-            if not 0.5 < b["k"] / k < 2.0:
+            if _far_spring(b["k"], k):
                 # the current spring is far from the balance's: a baseline may absorb a long lag
                 # in its spring as well as in F_v/k (where two force levels leave k unidentified by
                 # the balances, a PRBS behind a V/P lag: unseen draw 47 record 8, baseline k a
@@ -1118,7 +1124,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # and the best start that ended at a spring far from the current model's: the training blocks'
         # short fit prefers the current spring's basin even where it generalises badly (a lag
         # absorbed in the spring, see _grid)
-        far = next((f for f in shorts if not 0.5 < f.vals["k"] / base["k"] < 2.0), None)
+        far = next((f for f in shorts if _far_spring(f.vals["k"], base["k"])), None)
         if far is not None and all(f is not far for f in best):
             best.append(far)
         fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
