@@ -70,7 +70,7 @@ import multiprocessing
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from contextvars import ContextVar
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -901,6 +901,9 @@ class Step:
     regime_rmse: dict[str, float]
     evidence: str
     x_sim: list[np.ndarray] = field(repr=False)
+    #: other candidates of the step that fit the held-out blocks as well (the winner's block
+    #: improvement over them is not significant at ``alpha``): the record cannot tell them apart
+    indistinguishable_from: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -928,10 +931,12 @@ class Reconciliation:
     def as_dict(self) -> dict:
         def step(s: Step) -> dict:
             return {"effect": s.effect, "params": s.params, "rmse_m": s.rmse, "heldout_rmse_m": s.heldout_rmse,
-                    "regime_rmse_m": s.regime_rmse, "evidence": s.evidence}
+                    "regime_rmse_m": s.regime_rmse, "evidence": s.evidence,
+                    "indistinguishable_from": list(s.indistinguishable_from)}
 
         base = step(self.baseline)
         base.pop("effect")
+        base.pop("indistinguishable_from")
         return {
             "baseline": base,
             "steps": [step(s) for s in self.steps],
@@ -1344,6 +1349,22 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         if others:
             o = others[0]
             evidence += f"; next best {o.effect} (ΔBIC {o.delta_bic:.1f}{', passes' if o.passed else ''})"
+        # the other passing candidates the winner is not positively better than: a BIC difference
+        # (held-out blocks of the fits on the training blocks, the round's n_eff) below 2, "not worth
+        # more than a bare mention" on the scale of Kass & Raftery (1995, Bayes factors, JASA 90,
+        # section 3.2).  A lag and a dead time on a smooth pressure, where they act alike
+        sc_best = _score(_residuals(best_v, recs, cfg, dv), recs)
+        p_best = n_params(best_c.effect, *best_c.replaces.split("->")) if best_c.replaces else n_params(best_c.effect, "", "")
+        alike = []
+        for c, v, _ in cands:
+            if c is best_c or not c.passed or c.effect in accepted:
+                continue
+            p_alt = n_params(c.effect, *c.replaces.split("->")) if c.replaces else n_params(c.effect, "", "")
+            d_bic = n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / sc_best.mse_h) + (p_alt - p_best) * math.log(n_eff)
+            if d_bic < 2.0:
+                alike.append(c.effect)
+                evidence += (f"; {c.effect} fits the held-out blocks about as well (BIC {d_bic:+.1f} against "
+                             f"{best_c.effect}, < 2): the record cannot tell them apart")
         if best_c.replaces:
             # the swapped effect's step (and any after it) is refitted with its alternative
             old_eff, new_eff = best_c.replaces.split("->")
@@ -1354,12 +1375,14 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
                 start_m = {n: x for n, x in best_v.items() if n in names_m or n in ("dv", "nb")}
                 note = f"; replaced {old_eff} when {best_c.effect} was added" if m == j else ""
-                steps[m] = full_step(accepted[m], start_m, names_m, steps[m].evidence + note)
+                steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note),
+                                   indistinguishable_from=tuple(e for e in steps[m].indistinguishable_from
+                                                                if e != accepted[m]))
         accepted.append(best_c.effect)
         carry = {}
         free = best_free
         cur = best_v
-        steps.append(full_step(best_c.effect, cur, free, evidence))
+        steps.append(replace(full_step(best_c.effect, cur, free, evidence), indistinguishable_from=tuple(alike)))
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
     if steps:

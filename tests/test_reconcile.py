@@ -63,6 +63,27 @@ def test_hidden_dead_time_is_named_and_the_gap_shrinks():
     assert r.final.rmse <= 0.5 * r.baseline.rmse
 
 
+@pytest.mark.parametrize("exc, hidden, seed, alike", [
+    # raw ISA steps: a lag rounds every edge that a dead time only shifts, the record tells them apart
+    (SHORT, 0.03, 7, False),
+    # a slow sine: a dead time and a lag both shift it by about the same time, it cannot
+    (sine(period=10.0, periods=2.0), 0.08, 11, True),
+])
+def test_a_lag_and_a_dead_time_are_reported_indistinguishable_only_where_the_record_cannot_tell_them(
+        exc, hidden, seed, alike):
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), exc, {"dead_time": (hidden,)}, seed=seed)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "t"))
+    first = r.steps[0]
+    assert first.effect in ("dead_time", "actuator_lag")
+    other = "actuator_lag" if first.effect == "dead_time" else "dead_time"
+    assert (other in first.indistinguishable_from) == alike
+    if alike:
+        assert "cannot tell them apart" in first.evidence
+        assert r.as_dict()["steps"][0]["indistinguishable_from"] == list(first.indistinguishable_from)
+    else:
+        assert first.effect == "dead_time"
+
+
 def test_cli_reconcile_json_and_report(tmp_path, capsys):
     data = tmp_path / "lag.csv"
     assert main(["simulate", "valve", "--test", "isa-steps", "--preset", "low", "--vp-lag", "0",
