@@ -1228,6 +1228,9 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             return len(_effect_names(e)) + (e in ("slip_jump", "stribeck"))  # + the stick rule (see _grid)
         return cnt(eff) + (cnt(with_) - cnt(replaces) if replaces else 0)
 
+    def p_of(c: Candidate) -> int:  # the parameters a candidate adds (n_params of its swap, if any)
+        return n_params(c.effect, *c.replaces.split("->")) if c.replaces else n_params(c.effect, "", "")
+
     def judge(eff: str, with_: tuple[str, ...], p_add: int, ref: _Score, sc: _Score, n_eff: float, t_crit: float):
         """The four tests of a candidate scored ``sc`` against the current model's ``ref`` (same blocks)."""
         dbic = n_eff * math.log(ref.mse_h / sc.mse_h) - p_add * math.log(n_eff)
@@ -1353,14 +1356,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # (held-out blocks of the fits on the training blocks, the round's n_eff) below 2, "not worth
         # more than a bare mention" on the scale of Kass & Raftery (1995, Bayes factors, JASA 90,
         # section 3.2).  A lag and a dead time on a smooth pressure, where they act alike
-        sc_best = _score(_residuals(best_v, recs, cfg, dv), recs)
-        p_best = n_params(best_c.effect, *best_c.replaces.split("->")) if best_c.replaces else n_params(best_c.effect, "", "")
+        mse_best = _score(_residuals(best_v, recs, cfg, dv), recs).mse_h
         alike = []
         for c, v, _ in cands:
-            if c is best_c or not c.passed or c.effect in accepted:
+            if c is best_c or not c.passed:
                 continue
-            p_alt = n_params(c.effect, *c.replaces.split("->")) if c.replaces else n_params(c.effect, "", "")
-            d_bic = n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / sc_best.mse_h) + (p_alt - p_best) * math.log(n_eff)
+            d_bic = (n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / mse_best)
+                     + (p_of(c) - p_of(best_c)) * math.log(n_eff))
             if d_bic < 2.0:
                 alike.append(c.effect)
                 evidence += (f"; {c.effect} fits the held-out blocks about as well (BIC {d_bic:+.1f} against "
