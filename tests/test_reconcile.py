@@ -29,6 +29,7 @@ from models.reconcile import (
 from models.valve_effects import EffectValve, actuator_pressure, hidden_record, simulate_effects
 from models.valve_tests import Excitation, isa_steps, sine, square
 from service.cli import main
+from service.commands.reconcile import _named
 
 SHORT = isa_steps(steps_pct=(1.0, 5.0, 20.0, 50.0), hold=2.0)  # 18 s of ISA-75.25 steps
 
@@ -77,11 +78,14 @@ def test_a_lag_and_a_dead_time_are_reported_indistinguishable_only_where_the_rec
     assert first.effect in ("dead_time", "actuator_lag")
     other = "actuator_lag" if first.effect == "dead_time" else "dead_time"
     assert (other in first.indistinguishable_from) == alike
+    named = _named(r)  # the summary line of `loopwatch reconcile` and its report's headline
     if alike:
         assert "cannot tell them apart" in first.evidence
         assert r.as_dict()["steps"][0]["indistinguishable_from"] == list(first.indistinguishable_from)
+        assert named.startswith(f"{first.effect} (or ") and other in named
     else:
         assert first.effect == "dead_time"
+        assert "actuator_lag" not in named.split(", ")[0]
 
 
 def test_cli_reconcile_json_and_report(tmp_path, capsys):

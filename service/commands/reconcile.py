@@ -48,6 +48,12 @@ def _um(v: float) -> str:
     return f"{v * 1e6:.2f} µm"
 
 
+def _named(r: Reconciliation) -> str:
+    """The effects found, each with the candidates the record cannot tell it from."""
+    return ", ".join(s.effect + (f" (or {' or '.join(s.indistinguishable_from)}: the record cannot tell them apart)"
+                                 if s.indistinguishable_from else "") for s in r.steps) or "none"
+
+
 def _lines(r: Reconciliation) -> list[str]:
     out = [f"noise floor (white position noise): {_um(r.noise_floor)}"]
     b = r.baseline
@@ -67,7 +73,7 @@ def _lines(r: Reconciliation) -> list[str]:
     for s in r.steps:
         out.append(f"added {s.effect}: RMSE {_um(s.rmse)} (held-out {_um(s.heldout_rmse)}): {s.evidence}")
         out.append("  params: " + ", ".join(f"{k} {v:.5g}" for k, v in s.params.items()))
-    out.append(f"effects: {', '.join(r.effects) if r.effects else 'none'} — {r.message}")
+    out.append(f"effects: {_named(r)} — {r.message}")
     out.append(f"RMSE: baseline {_um(r.baseline.rmse)} -> final {_um(r.final.rmse)} (noise {_um(r.noise_floor)})")
     return out
 
@@ -121,7 +127,7 @@ def _report(path: Path, r: Reconciliation, lines: list[str]) -> None:
     doc = (
         "<!doctype html><html><head><meta charset='utf-8'><title>loopwatch reconcile</title></head><body>"
         f"<h1>loopwatch reconcile: {html.escape(', '.join(rec.data.name for rec in r.records))}</h1>"
-        f"<p><b>Effects found:</b> {html.escape(', '.join(r.effects) or 'none')} — {html.escape(r.message)}</p>"
+        f"<p><b>Effects found:</b> {html.escape(_named(r))} — {html.escape(r.message)}</p>"
         f"<pre>{html.escape(chr(10).join(lines))}</pre>{body}</body></html>"
     )
     path.parent.mkdir(parents=True, exist_ok=True)
