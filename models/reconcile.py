@@ -640,8 +640,12 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                     sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
                     slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
     if len(stops) < 2:
+        travel = max(float(np.ptp(np.percentile(r.x, [1, 99]))) for r in recs)
+        force = max(float(np.ptp(np.percentile(r.p_smooth, [1, 99]))) for r in recs) * cfg.sa
         raise IdentificationError(
-            f"{len(stops)} slide(s) ending at rest: the record needs the stem to slide and stop in both directions"
+            f"{len(stops)} slide(s) ending at rest: the record needs the stem to slide and stop in both directions "
+            f"(it travels {travel * 1e3:.3g} mm while the force on the diaphragm spans {force / 1e3:.3g} kN; if the "
+            "valve barely moved, record it under larger pressure changes: friction held it)"
         )
     S = np.array(stops)
     both = len(set(S[:, 2])) == 2
