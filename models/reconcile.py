@@ -57,7 +57,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    baseline too, while no effect is accepted) and the candidates are tested again.
    The best passing effect (largest ΔBIC) is added and the search repeats, so that two hidden
    effects are both found; it stops when no effect passes or when the model is within the
-   noise (held-out MSE − noise power < ``min_gain``·noise power).
+   noise (held-out MSE − noise power < ``min_gain``·noise power).  When no single effect passes
+   the first step, every compatible pair is fitted added together from the force balances with
+   both effects at once (:func:`_joint_starts`) and judged by the same tests, Bonferroni over
+   the pairs (``pair_search``); a passing pair is reported as two steps.
 4. **The gap**: RMSE before/after each step on the whole record and per regime.
 
 Pure functions over arrays: no I/O, no clock, no plotting.
