@@ -946,8 +946,8 @@ class Step:
     regime_rmse: dict[str, float]
     evidence: str
     x_sim: list[np.ndarray] = field(repr=False)
-    #: other candidates of the step that fit the held-out blocks as well (the winner's block
-    #: improvement over them is not significant at ``alpha``): the record cannot tell them apart
+    #: other passing candidates of the step the winner is not positively better than (held-out
+    #: BIC within 2, Kass & Raftery 1995): the record cannot tell them apart
     indistinguishable_from: tuple[str, ...] = ()
 
 
@@ -1379,7 +1379,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             ), fit.vals, fit_free))
         rounds.append(tuple(c for c, _, _ in cands))
         passing = [(c, v, f) for c, v, f in cands if c.passed]
-        field = cands  # the candidates the winner is reported against
+        rivals = cands  # the candidates the winner is reported against
         if not passing and not accepted and cfg.pair_search and cfg.max_effects >= 2:
             # look-ahead: every compatible pair added together, the same four tests (Bonferroni over
             # the pairs, both effects' parameters in the penalty).  A slip jump and a deadband can each
@@ -1416,7 +1416,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 ), fit.vals, free + _effect_names(first) + _effect_names(second)))
             rounds[-1] += tuple(c for c, _, _ in pcands)
             passing = [(c, v, f) for c, v, f in pcands if c.passed]
-            field = pcands
+            rivals = pcands
         if not passing:
             message = "no further effect passes the held-out test" if accepted else "no missing effect found"
             break
@@ -1459,7 +1459,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             f"{best_c.gain_in_predicted:.0%} of the gain in {', '.join(top)}"
         )
         evidence += unsampled
-        others = sorted((c for c, _, _ in field if c is not best_c), key=lambda c: -c.delta_bic)
+        others = sorted((c for c, _, _ in rivals if c is not best_c), key=lambda c: -c.delta_bic)
         if others:
             o = others[0]
             evidence += f"; next best {o.effect} (ΔBIC {o.delta_bic:.1f}{', passes' if o.passed else ''})"
@@ -1469,7 +1469,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # section 3.2).  A lag and a dead time on a smooth pressure, where they act alike
         mse_best = _score(_residuals(best_v, recs, cfg, dv), recs).mse_h
         alike = []
-        for c, v, _ in field:
+        for c, v, _ in rivals:
             if c is best_c or not c.passed:
                 continue
             d_bic = (n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / mse_best)
