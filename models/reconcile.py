@@ -732,7 +732,7 @@ def _joint_starts(effects: tuple[str, ...], recs: list[Prepared], cfg: Reconcile
     deadband taking a quarter or half of the friction the balance read), every stick rule of
     ``rules`` (``nb``, ``dv``)."""
     vt = float(np.median([r.speed_typ for r in recs]))
-    timing = [{"actuator_lag": "tau", "dead_time": "theta"}[e] for e in effects if e in ("actuator_lag", "dead_time")]
+    timing = [_effect_names(e)[0] for e in effects if e in ("actuator_lag", "dead_time")]
     out = []
     for kw in ({"at": "tail"}, {"at": "head"}, {"at": "breakaway"}, {"at": "head", "fast_slides": True},
                {"at": "breakaway", "fast_slides": True}):
@@ -809,7 +809,7 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     fv = vals["fv"]
     # or start again from the force balances with the pressure the candidate puts on the actuator
     if effect in ("actuator_lag", "dead_time"):
-        key = "tau" if effect == "actuator_lag" else "theta"
+        key = _effect_names(effect)[0]
         out = []
         xm = float(np.median(np.concatenate([r.x for r in recs])))
         for t in (0.01, 0.03, 0.1, 0.3, 1.0):
@@ -1194,6 +1194,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         memo["plain", eff] = fit, fit_sse
         return fit, fit_sse
 
+    def without(vals: dict[str, float], e: str) -> dict[str, float]:
+        """``vals`` with effect ``e`` taken out (a friction effect takes its stick rule with it)."""
+        vb = {n: x for n, x in vals.items() if n not in _effect_names(e)
+              and not (n in ("dv", "nb") and e in ("slip_jump", "stribeck"))}
+        return {**base_rule, **vb}
+
     def swap_fit(eff: str, a: str, alt: str, base: dict[str, float], base_sse: float, fold: str,
                  todo: list[str], memo: dict) -> tuple[_Fit, float, tuple[str, ...]] | None:
         """The model with ``eff`` added and the accepted effect ``a`` swapped for ``alt``, fitted on
@@ -1213,11 +1219,6 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         names = _effect_names(eff)
         vfree = tuple(n for n in free if n not in _effect_names(a)) + _effect_names(alt) + names
 
-        def without_a(vals: dict[str, float]) -> dict[str, float]:
-            vb = {n: x for n, x in vals.items() if n not in _effect_names(a)
-                  and not (n in ("dv", "nb") and a in ("slip_jump", "stribeck"))}
-            return {**base_rule, **vb}  # a friction effect swapped out takes its stick rule with it
-
         def own(vals: dict[str, float], e: str) -> dict[str, float]:  # effect e's parameters (and stick rule)
             rule = ("dv", "nb") if e in ("slip_jump", "stribeck") else ()
             return {n: x for n, x in vals.items() if n in _effect_names(e) or n in rule}
@@ -1225,7 +1226,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         fit_e = plain_fit(eff, base, base_sse, fold, [], memo)[0]
         if alt in todo:
             fit_alt = plain_fit(alt, base, base_sse, fold, [], memo)[0]
-            ve, va = without_a(fit_e.vals), without_a(fit_alt.vals)
+            ve, va = without(fit_e.vals, a), without(fit_alt.vals, a)
             cross = [{**ve, **own(fit_alt.vals, alt)}, {**va, **own(fit_e.vals, eff)}]
             # and each side's grid of the other effect, screened by the error at the start
             grid = ([{**ve, **g} for g in _grid(alt, ve, recs, cfg, dv, friction_rule.get(alt))]
@@ -1234,7 +1235,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             sse0 = [fold_sse(g, fold) for g in grid]
             starts = cross + [grid[i] for i in np.argsort(sse0)[:_SWAP_SCREEN]]
         else:
-            vb = without_a(fit_e.vals)
+            vb = without(fit_e.vals, a)
             starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt))]
         vs = short_fits(starts, vfree, fold)
         out = None
@@ -1352,31 +1353,47 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         memo2: dict = {}  # and on the held-out blocks (the second fold)
         for eff in todo:  # every candidate's own fit first: the swaps start from them
             plain_fit(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [], memo)
-        for eff in todo:
-            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", todo, memo)
-            sc = _score(_residuals(fit.vals, recs, cfg, dv), recs)
-            p_add = n_params(eff, replaces, with_)
+        def assess(eff: str, label: str, vals: dict[str, float], with_: str, replaces: str, p_add: int,
+                   t_crit: float, refit_test: Callable) -> Candidate:
+            """The held-out tests of a candidate fitted on the training blocks (``vals``; ``with_``
+            the effect it swaps in or that comes with it, ``p_add`` its parameters): on the held-out
+            blocks, and when only the significance fails, by the two-fold cross-fit: the candidate
+            (and the current model) fitted again on the held-out blocks and scored on the training
+            blocks; the two folds' block improvements are tested together (every block scored by a
+            fit that did not see it).  ``refit_test(cur2, cur2_sse)``: the candidate fitted on the
+            held-out blocks from the current model's fit there, as (values, the effect it swaps in
+            or that comes with it, its parameters), or None."""
+            sc = _score(_residuals(vals, recs, cfg, dv), recs)
             ref, ne, withs = sc_cur, n_eff, (with_,)
             dbic, t, gain, in_pred, reasons = judge(eff, withs, p_add, ref, sc, ne, t_crit)
             crossed = False
             if cfg.cross_fit and all(r.startswith("held-out block improvement") for r in reasons):
-                # two-fold cross-fit: the candidate (and the current model) fitted again on the
-                # held-out blocks and scored on the training blocks; the two folds' block
-                # improvements are tested together (every block scored by a fit that did not see it)
                 cur2, cur2_sse, sc_cur2 = second_fold()
-                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", todo, memo2)
-                sc2 = _score(_residuals(fit2.vals, recs, cfg, dv), recs, "train")
-                ref, sc = _pool(sc_cur, sc_cur2), _pool(sc, sc2)
-                ne, withs = n_eff * ref.n_h / sc_cur.n_h, (with_, with2)
-                p_add = max(p_add, n_params(eff, rep2, with2))
-                dbic, t, gain, in_pred, reasons = judge(eff, withs, p_add, ref, sc, ne, t_crit)
-                crossed = True
-            cands.append((Candidate(
-                effect=eff, params=_public(fit.vals, dv), heldout_rmse=math.sqrt(sc.mse_h), delta_bic=dbic,
+                second = refit_test(cur2, cur2_sse)
+                if second is not None:
+                    vals2, with2, p2 = second
+                    sc2 = _score(_residuals(vals2, recs, cfg, dv), recs, "train")
+                    ref, sc = _pool(sc_cur, sc_cur2), _pool(sc, sc2)
+                    ne, withs = n_eff * ref.n_h / sc_cur.n_h, (with_, with2)
+                    p_add = max(p_add, p2)
+                    dbic, t, gain, in_pred, reasons = judge(eff, withs, p_add, ref, sc, ne, t_crit)
+                    crossed = True
+            return Candidate(
+                effect=label, params=_public(vals, dv), heldout_rmse=math.sqrt(sc.mse_h), delta_bic=dbic,
                 t_stat=t, t_crit=t_crit, gain_fraction=gain / ref.mse_h, gain_in_predicted=in_pred,
                 gain_over_noise=gain / noise_pow, passed=not reasons, reasons=tuple(reasons),
-                replaces=f"{replaces}->{with_}" if replaces else "", cross_fitted=crossed, n_eff=ne,
-            ), fit.vals, fit_free))
+                replaces=replaces, cross_fitted=crossed, n_eff=ne,
+            )
+
+        for eff in todo:
+            fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", todo, memo)
+
+            def refit_single(cur2, cur2_sse, eff=eff):
+                fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", todo, memo2)
+                return fit2.vals, with2, n_params(eff, rep2, with2)
+
+            cands.append((assess(eff, eff, fit.vals, with_, f"{replaces}->{with_}" if replaces else "",
+                                 n_params(eff, replaces, with_), t_crit, refit_single), fit.vals, fit_free))
         rounds.append(tuple(c for c, _, _ in cands))
         passing = [(c, v, f) for c, v, f in cands if c.passed]
         rivals = cands  # the candidates the winner is reported against
@@ -1392,28 +1409,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 fit = pair_fit(a, b, cur, cur_sse, "train", memo)
                 if fit is None:
                     continue
-                sc = _score(_residuals(fit.vals, recs, cfg, dv), recs)
                 p_add = n_params(a, "", "") + n_params(b, "", "")
-                t_crit_p = cfg.alpha / len(pairs)
-                ref, ne = sc_cur, n_eff
-                dbic, t, gain, in_pred, reasons = judge(a, (b,), p_add, ref, sc, ne, t_crit_p)
-                crossed = False
-                if cfg.cross_fit and all(r.startswith("held-out block improvement") for r in reasons):
-                    cur2, cur2_sse, sc_cur2 = second_fold()
+
+                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add):
                     fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2)
-                    if fit2 is not None:
-                        sc2 = _score(_residuals(fit2.vals, recs, cfg, dv), recs, "train")
-                        ref, sc = _pool(sc_cur, sc_cur2), _pool(sc, sc2)
-                        ne = n_eff * ref.n_h / sc_cur.n_h
-                        dbic, t, gain, in_pred, reasons = judge(a, (b,), p_add, ref, sc, ne, t_crit_p)
-                        crossed = True
+                    return None if fit2 is None else (fit2.vals, b, p_add)
+
                 first, second = (a, b) if single_bic[a] >= single_bic[b] else (b, a)
-                pcands.append((Candidate(
-                    effect=f"{first}+{second}", params=_public(fit.vals, dv), heldout_rmse=math.sqrt(sc.mse_h),
-                    delta_bic=dbic, t_stat=t, t_crit=t_crit_p, gain_fraction=gain / ref.mse_h,
-                    gain_in_predicted=in_pred, gain_over_noise=gain / noise_pow, passed=not reasons,
-                    reasons=tuple(reasons), cross_fitted=crossed, n_eff=ne,
-                ), fit.vals, free + _effect_names(first) + _effect_names(second)))
+                pcands.append((assess(a, f"{first}+{second}", fit.vals, b, "", p_add, cfg.alpha / len(pairs),
+                                      refit_pair), fit.vals, free + _effect_names(first) + _effect_names(second)))
             rounds[-1] += tuple(c for c, _, _ in pcands)
             passing = [(c, v, f) for c, v, f in pcands if c.passed]
             rivals = pcands
@@ -1496,10 +1500,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # second effect, refitted
             first, second = named
             evidence = f"no single effect passes the held-out test; {first} and {second} added together do: " + evidence
-            v1 = {n: x for n, x in best_v.items() if n not in _effect_names(second)
-                  and not (n in ("dv", "nb") and second in ("slip_jump", "stribeck"))}
             # fitted on the training blocks first: its held-out RMSE is then out of sample, as every step's
-            v1 = _fit({**base_rule, **v1}, free + _effect_names(first), recs, cfg, dv).vals
+            v1 = _fit(without(best_v, second), free + _effect_names(first), recs, cfg, dv).vals
             steps.append(full_step(first, v1, free + _effect_names(first),
                                    evidence + f"; this step: {first} alone, refitted from the pair's fit"))
             accepted.append(first)
