@@ -1093,7 +1093,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     sigma = math.sqrt(sum(r.sigma_x**2 * r.x.size for r in recs) / n_all)
     noise_pow = max(sigma**2, 1e-24)
 
-    def full_step(effect: str, vals_train: dict[str, float], free: tuple[str, ...], evidence: str) -> Step:
+    def full_step(effect: str, vals_train: dict[str, float], free: tuple[str, ...], evidence: str,
+                  start: bool = False) -> Step:
+        """The model ``vals_train`` (fitted on the training blocks; ``start``: only a start, fitted
+        there first) refitted on the whole record; its held-out RMSE is the training fit's."""
+        if start:  # else its held-out RMSE would be that of parameters no fit chose
+            vals_train = _fit(vals_train, free, recs, cfg, dv).vals
         fitted = _fit(vals_train, free, recs, cfg, dv, use="all")
         res = _residuals(fitted.vals, recs, cfg, dv)
         res_t = _residuals(vals_train, recs, cfg, dv)
@@ -1492,7 +1497,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
                 start_m = {n: x for n, x in best_v.items() if n in names_m or n in ("dv", "nb")}
                 note = f"; replaced {old_eff} when {best_c.effect} was added" if m == j else ""
-                steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note),
+                steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note, start=True),
                                    indistinguishable_from=tuple(e for e in steps[m].indistinguishable_from
                                                                 if e != accepted[m]))
         if len(named) == 2:
@@ -1500,10 +1505,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # second effect, refitted
             first, second = named
             evidence = f"no single effect passes the held-out test; {first} and {second} added together do: " + evidence
-            # fitted on the training blocks first: its held-out RMSE is then out of sample, as every step's
-            v1 = _fit(without(best_v, second), free + _effect_names(first), recs, cfg, dv).vals
-            steps.append(full_step(first, v1, free + _effect_names(first),
-                                   evidence + f"; this step: {first} alone, refitted from the pair's fit"))
+            steps.append(full_step(first, without(best_v, second), free + _effect_names(first),
+                                   evidence + f"; this step: {first} alone, refitted from the pair's fit", start=True))
             accepted.append(first)
         accepted.append(named[-1])
         carry = {}
@@ -1515,12 +1518,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     if steps:
         # the baseline is reported as fitted as well as we can: started again from the final
         # model's Karnopp parameters (the effects removed); the better of the two is kept, so that
-        # "before" is never a baseline the search merely failed to fit.  Fitted on the training
-        # blocks first, as every step: its held-out RMSE is then out of sample (it was the error of
-        # the final model's parameters with the effects removed, not of a fit: 451 µm against a
-        # baseline of 44 µm on an unseen slip jump + deadband record)
-        again = full_step("baseline", _fit({**{n: cur[n] for n in _BASE}, **base_rule}, _BASE, recs, cfg, dv).vals,
-                          _BASE, baseline.evidence)
+        # "before" is never a baseline the search merely failed to fit
+        again = full_step("baseline", {**{n: cur[n] for n in _BASE}, **base_rule}, _BASE, baseline.evidence, start=True)
         if again.rmse < baseline.rmse:
             baseline = again
     if not accepted and "no missing" not in message:

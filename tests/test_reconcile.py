@@ -210,6 +210,9 @@ def test_deadband_named_first_is_swapped_for_the_hidden_lag_and_dead_time_on_a_s
     assert r.final.params["tau_s"] == pytest.approx(0.2, rel=0.15)
     assert r.final.params["theta_s"] == pytest.approx(0.08, rel=0.15)
     assert r.final.rmse < 1.1 * r.noise_floor
+    # the swapped step is refitted: its held-out RMSE is that of a fit on the training blocks, near
+    # its RMSE over the record, not that of the winner's parameters with the later effect removed
+    assert all(s.heldout_rmse < 2 * s.rmse for s in r.steps)
 
 
 def test_cross_fit_scores_every_block_once_by_the_fit_of_the_other_half():
