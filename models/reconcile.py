@@ -1476,10 +1476,18 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # (held-out blocks of the fits on the training blocks, the round's n_eff) below 2, "not worth
         # more than a bare mention" on the scale of Kass & Raftery (1995, Bayes factors, JASA 90,
         # section 3.2).  A lag and a dead time on a smooth pressure, where they act alike
+        def model_of(c: Candidate) -> frozenset[str]:  # the effects of the model a candidate proposes
+            out = set(accepted) | set(c.effect.split("+"))
+            if c.replaces:
+                old, new = c.replaces.split("->")
+                out = (out - {old}) | {new}
+            return frozenset(out)
+
         mse_best = _score(_residuals(best_v, recs, cfg, dv), recs).mse_h
         alike = []
         for c, v, _ in rivals:
-            if c is best_c or not c.passed:
+            # a rival proposing the winner's own model (a swap reached from the other side) is none
+            if c is best_c or not c.passed or model_of(c) == model_of(best_c):
                 continue
             d_bic = (n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / mse_best)
                      + (p_of(c) - p_of(best_c)) * math.log(n_eff))

@@ -213,6 +213,9 @@ def test_deadband_named_first_is_swapped_for_the_hidden_lag_and_dead_time_on_a_s
     # the swapped step is refitted: its held-out RMSE is that of a fit on the training blocks, near
     # its RMSE over the record, not that of the winner's parameters with the later effect removed
     assert all(s.heldout_rmse < 2 * s.rmse for s in r.steps)
+    # round 2 reaches the lag + dead time model from both sides; the other side is the same model,
+    # not one the record cannot tell from it
+    assert not set(r.steps[-1].indistinguishable_from) & set(r.effects)
 
 
 def test_cross_fit_scores_every_block_once_by_the_fit_of_the_other_half():
