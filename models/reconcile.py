@@ -16,8 +16,7 @@ missing effect explains it, and how much does adding it shrink the gap.
    force reverses it; the recorded pressure's noise is not a force on it).  Whether the band or
    eq. (2) as written fits the record better is chosen on the training blocks when the baseline
    is fitted (every later model keeps that rule), and again by the friction candidates
-   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7); eq. (2) must beat the band there by the
-   relevance bar (:func:`_prefer_band`, session 12).
+   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7).
 2. **Where they disagree** (:func:`regimes`, :func:`regime_table`): every sample is put in one
    regime (after a reversal, breakaway, step transient, sliding fast/slow, stuck, steady) and the
    squared residual is split by regime; the residual–input cross-correlation is reported.
@@ -143,9 +142,8 @@ class ReconcileConfig:
         of eq. (2) are not taken within it.  3 (a Gaussian noise sample exceeds it with
         probability 0.3 %; not tuned) is the setting measured in ACCURACY.md (issue 8, sessions
         6–7).  With a band the baseline is fitted with the band and with eq. (2) as written, and
-        the band is kept unless eq. (2) is better on the training blocks by the relevance bar
-        (:func:`_prefer_band`; its rule held by every later model, unless a friction candidate
-        chooses again, see :func:`_grid`).  0: eq. (2) as written only.
+        the better on the training blocks is kept (its rule held by every later model, unless a
+        friction candidate chooses again, see :func:`_grid`).  0: eq. (2) as written only.
         The default is 3 since session 9: on the unseen draws 19, 23, 29 and 31 the band was
         never worse than 0 and found large slip jumps on ramps that eq. (2) alone cannot fit
         from the filtered pressure (there the noise left in it stops a slow slide below DV and
