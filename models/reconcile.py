@@ -448,32 +448,6 @@ def _fold_mask(r: Prepared, fold: str) -> np.ndarray:
     return r.train.copy() if fold == "train" else ~r.train
 
 
-def _prefer_band(fits: list[_Fit], recs: list[Prepared], cfg: ReconcileConfig, dv: float, fold: str = "train") -> _Fit:
-    """The fit of ``fits`` with the least squared error on ``fold``, except that a fit under eq. (2)
-    as written (``nb`` 0) must beat the best fit with the stick band by the relevance bar
-    (``min_gain`` of the noise power per sample of ``fold``), as a swap must beat the candidate's
-    own fit.  Eq. (2) without the band decides stick and slip within the pressure noise: a slow
-    slide near DV sticks or slips at a hair's difference in the parameters, so its fits win the
-    training blocks by chance events and lose the held-out ones (unseen 89 #3, a slip jump of
-    1.26 on a sine sweep: the truth's own parameters leave 10.82 / 30.50 µm on the training /
-    held-out blocks without the band and 10.91 / 11.06 with it; 53 #2: 12.63 / 39.41 and
-    12.67 / 13.92 refitted; noise 10.2 and 12.6)."""
-    def fold_sse(f: _Fit) -> float:
-        return sum(float(np.sum(e[_fold_mask(r, fold)] ** 2)) for e, r in zip(_residuals(f.vals, recs, cfg, dv), recs))
-
-    if cfg.stick_band <= 0 or len({f.vals.get("nb") for f in fits}) < 2:
-        return min(fits, key=lambda f: f.sse_train)
-    sse = [fold_sse(f) for f in fits]
-    best = int(np.argmin(sse))
-    banded = [i for i, f in enumerate(fits) if f.vals.get("nb", 0.0) > 0]
-    if fits[best].vals.get("nb", 0.0) > 0 or not banded:
-        return fits[best]
-    band = min(banded, key=lambda i: sse[i])
-    n = sum(int(_fold_mask(r, fold).sum()) for r in recs)
-    noise_pow = sum(r.sigma_x**2 * r.x.size for r in recs) / sum(r.x.size for r in recs)
-    return fits[best] if sse[best] < sse[band] - cfg.min_gain * noise_pow * n else fits[band]
-
-
 def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
          use: str = "train", max_nfev: int | None = None, stride_s: float = 0.004) -> _Fit:
     # every 4 ms of the record enters the objective: the fit is as good (the model error is smooth,
@@ -773,7 +747,7 @@ def _fit_baseline(recs: list[Prepared], cfg: ReconcileConfig, dv: float, refine:
                         key=lambda f: f.sse_train)
         refined = [_fit(f.vals, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev) for f in shorts[:refine]]
         fits.append(_fit(min(refined, key=lambda f: f.sse_train).vals, _BASE, recs, cfg, dv))
-    return _prefer_band(fits, recs, cfg, dv).vals
+    return min(fits, key=lambda f: f.sse_train).vals
 
 
 def _balance(recs: list[Prepared], cfg: ReconcileConfig, vals: dict[str, float], **kw) -> dict[str, float]:
@@ -1247,8 +1221,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         far = next((f for f in shorts if _far_spring(f.vals["k"], base["k"])), None)
         if far is not None and all(f is not far for f in best):
             best.append(far)
-        fit = _prefer_band(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
-                           recs, cfg, dv, fold)
+        fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
+                  key=lambda f: f.sse_train)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
             # each friction effect chooses its stick rule once, at its first fit (training blocks),
             # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
@@ -1358,8 +1332,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                             key=lambda f: f.sse_train)
             fit = None
             if shorts:
-                fit = _prefer_band(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in shorts[:2]], recs, cfg, dv),
-                                   recs, cfg, dv, fold)
+                fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in shorts[:2]], recs, cfg, dv),
+                          key=lambda f: f.sse_train)
                 fit = fit if fold_sse(fit.vals, fold) < base_sse else None
             memo[key] = fit
         return memo[key]
