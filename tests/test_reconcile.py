@@ -17,14 +17,11 @@ from models.reconcile import (
     ReconcileConfig,
     _alternatives,
     _fit,
-    _fit_baseline,
     _fold_mask,
     _grid,
     _initial_baseline,
     _pool,
-    _residuals,
     _score,
-    _sliding_balance,
     prepare,
     reconcile,
     smooth_pressure,
@@ -144,35 +141,6 @@ def test_two_hidden_effects_that_no_single_effect_explains_are_found_together():
     # is nested in it) is not far from the baseline out of sample
     assert r.baseline.heldout_rmse < 2 * r.baseline.rmse
     assert r.steps[0].heldout_rmse < 2 * r.baseline.heldout_rmse
-
-
-def test_baseline_reaches_a_clean_valve_where_the_balances_at_rest_confound_spring_and_friction():
-    """A clean record of the independent simulator (unseen draw 79, record 20): a PRBS behind a
-    0.3 s V/P lag.  The stem creeps into its stops and rests at two force levels, so the balances
-    at rest read ``F_c`` near 0 and a stiff spring, and every output-error fit from them ends in
-    a basin of about 6 times the noise.  The sliding balance (eq. 4 without inertia over the
-    fast slides) gives the planted valve back, and the baseline fitted from it reaches the
-    noise (planted truth: the valve's own parameters)."""
-    from tests.bench.accuracy_reconcile import indep_record, prbs
-
-    valve = {"k": 160162.88757972897, "sa": 0.06, "m": 1.4563041975423117, "fc": 663.4232148258255,
-             "fv": 3834.443577085297, "bias": 0.001506108100878732, "tau_vp": 0.3}
-    noise_x = 5.4016699060905734e-06
-    t, p, x = indep_record(valve, prbs(9019), {}, noise_x, 147.54861899660676, 9019)
-    recs = [prepare(ValveData(t, p, x, "clean prbs"), 0.5, valve["sa"])]
-    cfg = ReconcileConfig(sa=valve["sa"])
-    rest = _initial_baseline(recs, cfg)
-    assert rest["fc"] < 0.2 * valve["fc"]  # the trap: the balance at rest
-    slides = _sliding_balance(recs, cfg)
-    assert slides["k"] == pytest.approx(valve["k"], rel=0.1)
-    assert slides["fc"] == pytest.approx(valve["fc"], rel=0.1)
-    assert slides["fv"] == pytest.approx(valve["fv"], rel=0.5)
-    assert slides["k"] * slides["bias"] == pytest.approx(valve["k"] * valve["bias"], abs=0.1 * valve["fc"])
-    dv = 0.01 * recs[0].speed_max
-    base = _fit_baseline(recs, cfg, dv)
-    e = _residuals(base, recs, cfg, dv)[0]
-    assert np.sqrt(np.mean(e[recs[0].train] ** 2)) < 1.5 * noise_x
-    assert base["k"] == pytest.approx(valve["k"], rel=0.05)
 
 
 def test_cli_errors_are_one_line(tmp_path, capsys):
