@@ -699,57 +699,6 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     return {**out, "dfs": float(top - fc)} if at == "breakaway" or fast_slides else out
 
 
-def _sliding_balance(recs: list[Prepared], cfg: ReconcileConfig) -> dict[str, float]:
-    """Baseline start values from the slides alone: ``k``, ``k·x̄``, ``F_c`` and ``F_v`` together by
-    least squares of ``S_a·p = k·(x_meas + x̄) + F_c·dir + F_v·ẋ`` over every sample sliding in
-    its run's direction faster than the median speed of those samples (eq. 4 without inertia;
-    the slow ones are creeping into a stop, where the speed estimate is mostly noise).
-
-    The balances at rest (:func:`_initial_baseline`) read the spring from the force levels where
-    slides end; where the stops are at two force levels only, or the stem creeps into them (a
-    PRBS behind a V/P lag), they leave ``k`` and ``F_c`` confounded, and the output-error fit from
-    them can end in a basin far from the valve's (unseen draw 79 record 20, clean: ``F_c`` 0 from
-    the balance at rest, every start ending at 34 µm on the training blocks against the truth's
-    7.6, a ridge of 128 µm between the two).  The slides span the force range continuously and
-    separate the spring (position) from the friction (direction) and the damping (speed)."""
-    rows = []
-    for r in recs:
-        sel = np.flatnonzero((r.state != 0) & (np.sign(r.xd) == r.state))
-        rows.append(np.column_stack([cfg.sa * r.p_smooth[sel], r.x[sel], r.state[sel], r.xd[sel]]))
-    R = np.concatenate(rows)
-    R = R[np.abs(R[:, 3]) > np.median(np.abs(R[:, 3]))] if len(R) else R
-    if len(R) < 4 or len(set(R[:, 2])) < 2:
-        raise IdentificationError("the sliding balance needs slides in both directions")
-    k, kb, fc, fv = np.linalg.lstsq(np.column_stack([R[:, 1], np.ones(len(R)), R[:, 2:]]), R[:, 0], rcond=None)[0]
-    if not (k > 0 and fc >= 0):
-        raise IdentificationError(f"the sliding balance gave k = {k:.3g} N/m, F_c = {fc:.3g} N")
-    return {"k": float(k), "fc": float(fc), "fv": max(float(fv), 0.0), "bias": float(kb / k)}
-
-
-def _fit_baseline(recs: list[Prepared], cfg: ReconcileConfig, dv: float, refine: int = 2) -> dict[str, float]:
-    """The baseline, the paper's model 1 (``F_s = F_c``), fitted on the training blocks.
-
-    Multi-start: the force balances at rest with the spring at 0.7, 1 and 1.4 times theirs (the
-    stops may be few or still creeping, :func:`_initial_baseline`) and the sliding balance
-    (:func:`_sliding_balance`); a short fit on the whole record from each, the ``refine`` best
-    refined there (a short fit does not tell which basin the refinement ends in), the best of
-    those fitted on the training blocks.  With a stick band the baseline's stick rule is chosen
-    by fit: the band, or eq. (2) as written (see ``ReconcileConfig.stick_band``); every later
-    model holds it unless a friction candidate chooses again (see :func:`_grid`)."""
-    fits = []
-    for rule in ([{"nb": cfg.stick_band}, {"nb": 0.0}] if cfg.stick_band > 0 else [{}]):
-        inits = [_initial_baseline(recs, cfg, k_scale=ks) for ks in (0.7, 1.0, 1.4)]
-        try:
-            inits.append(_sliding_balance(recs, cfg))
-        except IdentificationError:
-            pass
-        shorts = sorted((_fit({**v, **rule}, _BASE, recs, cfg, dv, use="all", max_nfev=cfg.max_nfev // 2) for v in inits),
-                        key=lambda f: f.sse_train)
-        refined = [_fit(f.vals, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev) for f in shorts[:refine]]
-        fits.append(_fit(min(refined, key=lambda f: f.sse_train).vals, _BASE, recs, cfg, dv))
-    return min(fits, key=lambda f: f.sse_train).vals
-
-
 def _balance(recs: list[Prepared], cfg: ReconcileConfig, vals: dict[str, float], **kw) -> dict[str, float]:
     """:func:`_initial_baseline` for a model ``vals`` that may carry a deadband ``d``: the balance
     at a stop reads ``F_c + k·d/2`` (the transmitter lags the stem by ``d/2`` after a slide), so
@@ -1162,7 +1111,19 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                     [r.x - e for r, e in zip(recs, res)])
 
     # 1. baseline (model 1: Fs = Fc)
-    cur = _fit_baseline(recs, cfg, dv)
+    # multi-start over the spring constant (the stops may be few or still creeping), short fits,
+    # then the best one refined
+    # with a stick band, the baseline's stick rule is chosen by fit (on the training blocks): the
+    # band, or eq. (2) as written (see ReconcileConfig.stick_band); it is held by every later model
+    # unless a friction candidate chooses again (see _grid)
+    fits = []
+    for rule in ([{"nb": cfg.stick_band}, {"nb": 0.0}] if cfg.stick_band > 0 else [{}]):
+        starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
+                       max_nfev=cfg.max_nfev // 2) for ks in (0.7, 1.0, 1.4)]
+        start = min(starts, key=lambda f: f.sse_train).vals
+        start = _fit(start, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev).vals
+        fits.append(_fit(start, _BASE, recs, cfg, dv))
+    cur = min(fits, key=lambda f: f.sse_train).vals
     base_rule = {"nb": cur["nb"]} if "nb" in cur else {}
     free: tuple[str, ...] = _BASE
 
