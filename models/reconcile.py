@@ -1158,6 +1158,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         first stage), on the worker processes, in the starts' order."""
         return pool.fits([(v, names, fold, _SHORT_NFEV, 0.016) for v in starts if v["fc"] >= 0], recs, cfg, dv)
 
+    def refine(shorts: list[_Fit], names: tuple[str, ...], fold: str) -> _Fit:
+        """The multi-start's second stage: the chosen short fits refined on ``fold`` (full
+        evaluation budget, every 4 ms), on the worker processes; the one with the least error."""
+        return min(pool.fits([(f.vals, names, fold, None, 0.004) for f in shorts], recs, cfg, dv),
+                   key=lambda f: f.sse_train)
+
     def plain_fit(eff: str, base: dict[str, float], base_sse: float, fold: str,
                   extra: list[dict[str, float]], memo: dict) -> tuple[_Fit, float]:
         """``eff`` added to the current model ``base`` (its SSE on ``fold`` ``base_sse``) and fitted
@@ -1182,8 +1188,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         far = next((f for f in shorts if _far_spring(f.vals["k"], base["k"])), None)
         if far is not None and all(f is not far for f in best):
             best.append(far)
-        fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in best], recs, cfg, dv),
-                  key=lambda f: f.sse_train)
+        fit = refine(best, free + names, fold)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
             # each friction effect chooses its stick rule once, at its first fit (training blocks),
             # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
@@ -1293,8 +1298,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                             key=lambda f: f.sse_train)
             fit = None
             if shorts:
-                fit = min(pool.fits([(f.vals, free + names, fold, None, 0.004) for f in shorts[:2]], recs, cfg, dv),
-                          key=lambda f: f.sse_train)
+                fit = refine(shorts[:2], free + names, fold)
                 fit = fit if fold_sse(fit.vals, fold) < base_sse else None
             memo[key] = fit
         return memo[key]
