@@ -773,7 +773,8 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
     band (a valve whose slides end at DV, as the paper's model, is fitted by its own rule).  The
     rule is one held choice (``nb``, the band in noise standard deviations, with ``dv``),
     counted as one parameter in the penalty as DV was.  ``rule``: the effect's stick rule (``nb``,
-    ``dv``) once the search has chosen it at the effect's first fit; only that rule is then tried.
+    ``dv``) once the search has chosen it (at the effect's first fit of a round, or held since it
+    was accepted); only that rule is then tried.
     The friction effects also start from the force balances at rest (their ``F_c`` and ``k``, ``x̄``,
     ``F_v``), from the joint balance at the stops and breakaways (``F_s`` too), and from the
     sliding balance of the fast slides (``F_c`` and ``F_v`` together; see :func:`_initial_baseline`)."""
@@ -1143,7 +1144,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     message = ""
     refits = 0
     carry: dict[str, dict[str, float]] = {}  # candidates' fits kept as starts across a refit
-    friction_rule: dict[str, dict[str, float]] = {}  # each friction effect's stick rule, once chosen (fit_candidate)
+    friction_rule: dict[str, dict[str, float]] = {}  # each candidate's stick rule, once chosen (plain_fit)
     n_train = sum(int(r.train.sum()) for r in recs)
 
     def fold_sse(v: dict[str, float], fold: str = "train", res: list[np.ndarray] | None = None) -> float:
@@ -1176,6 +1177,14 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # output error is steep in k and F_s, and the start nearest in error is often the
         # baseline's compromise)
         starts = [{**base, **g} for g in _grid(eff, base, recs, cfg, dv, friction_rule.get(eff)) + extra]
+        if eff not in _EXCLUSIVE and "nb" in base and any(e in _EXCLUSIVE for e in accepted):
+            # beside an accepted friction effect, an effect of the pressure path or the transmitter
+            # is fitted with both stick rules: the rule the friction effect chose before this effect
+            # was modelled may be the wrong one (unseen 97 #24: a slip jump chose eq. (2) without
+            # the band beside a missing dead time; with the dead time, the band fits at the noise)
+            rules = [friction_rule[eff]] if eff in friction_rule else [
+                {"nb": nb, "dv": base.get("dv", dv)} for nb in (base["nb"], cfg.stick_band if base["nb"] == 0.0 else 0.0)]
+            starts = [{**s, **r} for s in starts for r in rules]
         shorts = short_fits(starts, free + names, fold)
         shorts.sort(key=lambda f: f.sse_train)
         # with several stick rules (slip_jump / stribeck, see _grid) the best start of each rule is
@@ -1190,9 +1199,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             best.append(far)
         fit = refine(best, free + names, fold)
         if len(rules) > 1 and cfg.stick_band > 0 and eff not in friction_rule:
-            # each friction effect chooses its stick rule once, at its first fit (training blocks),
-            # and holds it in every later fit (swaps, the second fold, later rounds): half the starts
-            friction_rule[eff] = {"nb": fit.vals["nb"], "dv": fit.vals["dv"]}
+            # each candidate with a choice of stick rule chooses it once a round, at its first fit
+            # (training blocks), and holds it in every later fit of the round (swaps, the second
+            # fold); an accepted effect's rule is held in every later round
+            friction_rule[eff] = {"nb": fit.vals["nb"], "dv": fit.vals.get("dv", dv)}
         fit_sse = fold_sse(fit.vals, fold)
         if fit_sse > base_sse:  # the fit got lost: the extension contains the current model
             v = dict(base)
@@ -1524,6 +1534,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         carry = {}
         free = best_free
         cur = best_v
+        # the new model's stick rule is held by its friction effect (a later effect may have chosen
+        # again); every other candidate chooses again in the next round, beside the new effect
+        friction_rule.clear()
+        friction_rule.update({e: {"nb": cur["nb"], "dv": cur.get("dv", dv)} for e in accepted if e in _EXCLUSIVE and "nb" in cur})
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
