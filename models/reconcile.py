@@ -1256,7 +1256,9 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             starts = cross + [grid[i] for i in np.argsort(sse0)[:_SWAP_SCREEN]]
         else:
             vb = without(fit_e.vals, a)
-            starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, friction_rule.get(alt))]
+            # a friction effect swapped for the other one keeps the model's stick rule
+            rule = friction_rule.get(alt, friction_rule.get(a) if a in _EXCLUSIVE else None)
+            starts = [{**vb, **g} for g in _grid(alt, vb, recs, cfg, dv, rule)]
         vs = short_fits(starts, vfree, fold)
         out = None
         if vs:
