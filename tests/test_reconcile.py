@@ -199,6 +199,20 @@ def test_lag_named_first_is_swapped_for_the_hidden_dead_time_beside_a_deadband()
 
 
 @pytest.mark.slow
+def test_the_stick_rule_is_chosen_again_when_a_dead_time_joins_a_slip_jump():
+    # planted truth: slip jump F_s = 1.5·F_c + dead time 80 ms on a sine through a 1 s V/P lag.  The
+    # slip jump is named first and chose its stick rule without the dead time; held to that rule, a
+    # lag was named second (session 12).  The dead time must be fitted with both rules
+    rec = hidden_record(PRESETS["high"].replace(tau_p=1.0), sine(periods=1.2),
+                        {"slip_jump": (1.5,), "dead_time": (0.08,)}, noise_x=2e-5, noise_p=400.0, seed=147)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "pair"))
+    assert r.effects == ["slip_jump", "dead_time"]
+    assert r.final.params["theta_s"] == pytest.approx(0.08, rel=0.2)
+    assert r.final.params["Fs"] / r.final.params["Fc"] == pytest.approx(1.5, rel=0.15)
+    assert r.final.rmse < 1.1 * r.noise_floor
+
+
+@pytest.mark.slow
 def test_deadband_named_first_is_swapped_for_the_hidden_lag_and_dead_time_on_a_square_wave():
     # planted truth: lag 0.2 s + dead time 80 ms on a square wave through a 1 s V/P lag.  Every
     # edge is a reversal, and a 1.3 mm deadband alone leaves 1.1x the noise: it is named first;
