@@ -1180,8 +1180,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         if eff not in _EXCLUSIVE and "nb" in base and any(e in _EXCLUSIVE for e in accepted):
             # beside an accepted friction effect, an effect of the pressure path or the transmitter
             # is fitted with both stick rules: the rule the friction effect chose before this effect
-            # was modelled may be the wrong one (unseen 97 #24: a slip jump chose eq. (2) without
-            # the band beside a missing dead time; with the dead time, the band fits at the noise)
+            # was modelled may be the wrong one (unseen draw 97 record 25: a slip jump chose eq. (2)
+            # without the band beside a missing dead time; with the dead time, the band fits at the noise)
             rules = [friction_rule[eff]] if eff in friction_rule else [
                 {"nb": nb, "dv": base.get("dv", dv)} for nb in (base["nb"], cfg.stick_band if base["nb"] == 0.0 else 0.0)]
             starts = [{**s, **r} for s in starts for r in rules]
