@@ -755,6 +755,12 @@ def _joint_starts(effects: tuple[str, ...], recs: list[Prepared], cfg: Reconcile
     return [v for v in out if v["fc"] >= 0]
 
 
+def _stick_rules(cfg: ReconcileConfig, dv: float) -> list[dict[str, float]]:
+    """The two stick rules a model may choose between (``ReconcileConfig.stick_band`` > 0): the
+    band, and eq. (2) as written without it; both with the limit velocity ``dv``."""
+    return [{"nb": cfg.stick_band, "dv": dv}, {"nb": 0.0, "dv": dv}]
+
+
 def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
           rule: dict[str, float] | None = None) -> list[dict[str, float]]:
     """Starting points for a candidate: a few sizes of the effect, the baseline parameters
@@ -802,7 +808,7 @@ def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: Reconc
         if rule:
             rules = [dict(rule)]
         elif cfg.stick_band > 0:  # the stick band (DV does not act on moving stems), or eq. (2) as written
-            rules = [{"nb": cfg.stick_band, "dv": dv0}, {"nb": 0.0, "dv": dv0}]
+            rules = _stick_rules(cfg, dv0)
         else:
             rules = [{"dv": d} for d in (dv0, 0.1 * dv0)]
         return [{**g, **r} for g in out for r in rules]
@@ -1116,7 +1122,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # then the best one refined
     # with a stick band, the baseline's stick rule is chosen by fit (on the training blocks): the
     # band, or eq. (2) as written (see ReconcileConfig.stick_band); it is held by every later model
-    # unless a friction candidate chooses again (see _grid)
+    # unless a later fit chooses again (a friction candidate, see _grid, or an effect beside an
+    # accepted friction effect, see plain_fit)
     fits = []
     for rule in ([{"nb": cfg.stick_band}, {"nb": 0.0}] if cfg.stick_band > 0 else [{}]):
         starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
@@ -1182,8 +1189,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # is fitted with both stick rules: the rule the friction effect chose before this effect
             # was modelled may be the wrong one (unseen draw 97 record 25: a slip jump chose eq. (2)
             # without the band beside a missing dead time; with the dead time, the band fits at the noise)
-            rules = [friction_rule[eff]] if eff in friction_rule else [
-                {"nb": nb, "dv": base.get("dv", dv)} for nb in (base["nb"], cfg.stick_band if base["nb"] == 0.0 else 0.0)]
+            rules = [friction_rule[eff]] if eff in friction_rule else _stick_rules(cfg, base.get("dv", dv))
             starts = [{**s, **r} for s in starts for r in rules]
         shorts = short_fits(starts, free + names, fold)
         shorts.sort(key=lambda f: f.sse_train)
@@ -1302,7 +1308,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             if fr or not {a, b} & {"slip_jump", "stribeck"}:
                 rules = fr or [{n: base[n] for n in ("nb", "dv") if n in base}]
             elif cfg.stick_band > 0:
-                rules = [{"nb": cfg.stick_band, "dv": base.get("dv", dv)}, {"nb": 0.0, "dv": base.get("dv", dv)}]
+                rules = _stick_rules(cfg, base.get("dv", dv))
             else:
                 rules = [{"dv": base.get("dv", dv)}]
             names = _effect_names(a) + _effect_names(b)
