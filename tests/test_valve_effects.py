@@ -263,3 +263,27 @@ def test_steep_stribeck_slide_follows_a_pressure_ramp_without_sticking():
     late = slice(2000, 3000)
     assert np.all(sim.v[late] > 0)  # slides on, never stuck
     assert np.mean(sim.v[late]) == pytest.approx(u_star, rel=0.02)
+
+
+def test_stick_band_a_stem_stopped_free_is_not_stuck_by_noise_over_a_long_rest():
+    # planted truth: F_s = 350 N > F_c = 150 N; a force step slides the stem up and it comes to
+    # rest at the edge of its sliding friction (F_net = F_c), stopped free: the force never turned
+    # against its motion.  Over the 5 s rest the recorded force carries Gaussian noise of
+    # σ = b/3 (the band is 3 σ); over 5000 samples its lowest dip is below F_c − b (about 3.7 σ),
+    # but a dip of noise is not a reversal of the force.  A slow rise of 150 N then moves the stem
+    # on against sliding friction (F_c + b + the noise), long before F_net could reach F_s.
+    k, fc, fs, fv, sa, dt, b = 2e5, 150.0, 350.0, 5000.0, 0.0445, 1e-3, 12.0
+    rng = np.random.default_rng(5)
+    n_rest, n_up = 5000, 1000
+    noise = rng.normal(0.0, b / 3.0, n_rest)
+    assert noise[500:].min() < -b  # the dip that the rest must survive
+    F = np.r_[np.full(100, 0.0), np.full(500, 1000.0), 1000.0 + noise[500:], 1000.0 + np.linspace(0.0, 150.0, n_up)]
+    valve = EffectValve(k=k, fc=fc, fv=fv, sa=sa, dv=1e-4, fs=fs)
+    x = simulate_effects(valve, F / sa, dt, x0_meas=0.0, band=b).x
+    i_up = 100 + n_rest
+    assert abs(x[i_up - 1] - (1000.0 - fc) / k) < 2.0 * b / k  # at rest at the edge of sliding friction
+    j = _first_restart(x, i_up - 200)
+    assert j < i_up + n_up
+    f_move = F[j] - k * x[j - 1]
+    assert f_move <= fc + b + 1e-6 + 150.0 / n_up, f_move  # moved on at F_c + b, not at F_s
+    assert x[-1] - x[i_up - 1] > (150.0 - 2.0 * b) / k  # and followed the rise
