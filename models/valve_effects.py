@@ -327,6 +327,11 @@ def _slide_speed(A, h, gs, fc, fs, vs, u0, u1, u2, uc, ec):  # pragma: no cover 
     return u, uc, ec
 
 
+#: A stem stopped free (see :func:`_karnopp_kernel`, ``band``) is stuck only when the net force turns
+#: against its motion by this many stick bands beyond sliding friction.
+_STICK_BANDS = 3.0
+
+
 @compile_cached
 def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, rest, bias, band, nsub, xm):  # pragma: no cover - compiled
     """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
@@ -370,13 +375,13 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
       ``F_s``, as in eq. (2): the two thresholds ``F_c − 3·b`` (stick) and ``F_s`` (break away)
       are a hysteresis of at least ``3·b``, so noise within the band cannot break it loose, and
       the breakaway is not delayed by ``b/Ḟ`` (which a slip jump's dead time would absorb).
-    * Why ``3·b`` below and ``b`` above: a stem stopped free at the edge of sliding friction
-      sees the recorded noise at every sample of its rest, and over thousands of samples the
-      noise dips beyond ``b`` (3 σ) several times; a dip taken for a reversal sticks the stem,
-      which then waits for ``F_s − F_c`` more force (a missed slide of ``(F_s − F_c)/k``), while
-      a peak beyond ``b`` above only lets it creep on by about ``b/k``.  ``3·b`` (9 σ) is not
-      reached by the noise of any record length (unseen draw 83 record 25: the truth's own fit,
-      69.5 µm on noise 16.0 with ``b``, is 17.4 µm with ``3·b``).
+    * Why ``3·b`` (``_STICK_BANDS``) below and ``b`` above: a stem stopped free at the edge
+      of sliding friction sees the recorded noise at every sample of its rest, and over
+      thousands of samples the noise dips beyond ``b`` (3 σ) several times; a dip taken for a
+      reversal sticks the stem, which then waits for ``F_s − F_c`` more force (a missed slide
+      of ``(F_s − F_c)/k``), while a peak beyond ``b`` above only lets it creep on by about
+      ``b/k``.  Gaussian noise practically never reaches ``3·b`` (9 σ) (unseen draw 83 record
+      25: the truth's own fit, 69.5 µm on noise 16.0 with ``b``, is 17.4 µm with ``3·b``).
 
     Returns stem position x, velocity v and the recorded position ``x_meas = y − bias`` (eq. 10);
     given a measured position ``xm`` (same length; empty: none), its residual ``xm − x_meas``
@@ -406,7 +411,7 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
             if abs(v) < dv and (b <= 0.0 or v == 0.0):
                 fr = fs  # friction holding the stem, and acting at breakaway
                 if free != 0.0:
-                    if free * f_net < fc - 3.0 * b:  # the force clearly turned against the motion: stuck
+                    if free * f_net < fc - _STICK_BANDS * b:  # the force clearly turned against the motion: stuck
                         free = 0.0
                     elif free * f_net > 0.0:  # stopped free: it moves on against sliding friction
                         fr = fs0
@@ -433,7 +438,7 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
                     v_free = (g - h * fs0 * s) / A  # where it would be without stopping (sign −s)
                     x = x + 0.5 * h * v * (v / (v - v_free))
                     v = 0.0
-                    if b > 0.0 and s * f_net >= fc - 3.0 * b:  # not clearly reversed: stopped free
+                    if b > 0.0 and s * f_net >= fc - _STICK_BANDS * b:  # not clearly reversed: stopped free
                         free = s
                 else:  # it reverses, with friction of the new sign
                     s = -s
