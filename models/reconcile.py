@@ -1125,7 +1125,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # unless a later fit chooses again (a friction candidate, see _grid, or an effect beside an
     # accepted friction effect, see plain_fit)
     fits = []
-    for rule in ([{"nb": cfg.stick_band}, {"nb": 0.0}] if cfg.stick_band > 0 else [{}]):
+    for rule in (_stick_rules(cfg, dv) if cfg.stick_band > 0 else [{}]):
         starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
                        max_nfev=cfg.max_nfev // 2) for ks in (0.7, 1.0, 1.4)]
         start = min(starts, key=lambda f: f.sse_train).vals
