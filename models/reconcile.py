@@ -597,7 +597,10 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     breakaway), ``dir`` the direction of the slide that ended: least squares for ``k``, ``k·x̄``,
     ``F_c`` when the stops are at three or more force levels.  A record with two levels only (a
     square wave) cannot separate spring and friction; ``k`` then starts at the force span over
-    the position span and the output-error fit moves along the flat direction.  ``F_v`` from
+    the position span and the output-error fit moves along the flat direction.  Stops in one
+    direction only (a valve that slid once and then held) cannot separate ``k·x̄`` from ``F_c``
+    either: ``F_c`` then starts at the least friction that held the stem through every rest, so
+    that the start does not slide back.  ``F_v`` from
     the slides: least squares of ``F_v·ẋ = S_a·p − k·(x_meas + x̄) − F_c·dir`` (eq. 4 without
     inertia).
     ``tau``, ``theta``: the force is computed from the recorded pressure through that lag and dead
@@ -626,10 +629,11 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     """
     if at not in ("tail", "head", "breakaway"):
         raise ModelConfigError(f"at={at!r}: 'tail', 'head' or 'breakaway' of each rest")
-    stops, breaks, slide_rows, moving_rows = [], [], [], []
+    stops, breaks, slide_rows, moving_rows, rest_rows = [], [], [], [], []
     for r in recs:
         state, xd = r.state, r.xd
         F = cfg.sa * actuator_pressure(r.p_smooth, r.dt, tau, theta)
+        rest_rows.append(np.column_stack([F[state == 0], r.x[state == 0]]))
         if fast_slides:  # every sample sliding in its run's direction
             sel = np.flatnonzero((state != 0) & (np.sign(xd) == state))
             moving_rows.append(np.column_stack([F[sel], r.x[sel], state[sel], xd[sel]]))
@@ -647,11 +651,11 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                 if not fast_slides:  # F_v from the slides that end at a rest (below)
                     sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
                     slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
-    if len(stops) < 2:
+    if not stops:
         travel = max(float(np.ptp(np.percentile(r.x, [1, 99]))) for r in recs)
         force = max(float(np.ptp(np.percentile(r.p_smooth, [1, 99]))) for r in recs) * cfg.sa
         raise IdentificationError(
-            f"{len(stops)} slide(s) ending at rest: the record needs the stem to slide and stop in both directions "
+            "no slide ending at rest: the record needs the stem to slide and come to rest "
             f"(it travels {travel * 1e3:.3g} mm while the force on the diaphragm spans {force / 1e3:.3g} kN; if the "
             "valve barely moved, record it under larger pressure changes: friction held it)"
         )
@@ -672,16 +676,28 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                                       f"F_s = {fs:.3g} N: no slip jump in it")
     elif both and levels >= 3:
         k, kb, fc = np.linalg.lstsq(np.column_stack([S[:, 0], np.ones(len(S)), S[:, 2]]), S[:, 1], rcond=None)[0]
+    def friction_and_bias(k: float) -> tuple[float, float]:
+        """``k·x̄`` and ``F_c`` from the stops for a given spring; with stops in one direction only
+        they trade one for the other, and ``F_c`` is the least that held the stem through every
+        rest: the force less the spring, ``g = F − k·x``, never left ``[k·x̄ − F_c, k·x̄ + F_c]``."""
+        if both:
+            kb, fc = np.linalg.lstsq(np.column_stack([np.ones(len(S)), S[:, 2]]), S[:, 1] - k * S[:, 0], rcond=None)[0]
+            return float(kb), max(float(fc), 0.0)
+        d = float(S[0, 2])
+        g_stop = float(np.median(S[:, 1] - k * S[:, 0]))  # = k·x̄ + F_c·d
+        rest = np.concatenate(rest_rows)
+        g = rest[:, 0] - k * rest[:, 1]
+        fc = 0.5 * max(float(np.max(d * (g_stop - g))), 0.0)
+        return g_stop - d * fc, fc
+
     if not (k > 0 and fc >= 0):
         allx = np.concatenate([r.x for r in recs])
         allF = cfg.sa * np.concatenate([r.p_smooth for r in recs])
         k = float(np.ptp(np.percentile(allF, [1, 99])) / max(np.ptp(np.percentile(allx, [1, 99])), 1e-9))
-        kb, fc = np.linalg.lstsq(np.column_stack([np.ones(len(S)), S[:, 2]]), S[:, 1] - k * S[:, 0], rcond=None)[0]
-        fc = max(float(fc), 0.0)
+        kb, fc = friction_and_bias(k)
     if k_scale != 1.0:  # another spring, the rest re-derived from the stops
         k *= k_scale
-        kb, fc = np.linalg.lstsq(np.column_stack([np.ones(len(S)), S[:, 2]]), S[:, 1] - k * S[:, 0], rcond=None)[0]
-        fc = max(float(fc), 0.0)
+        kb, fc = friction_and_bias(k)
     top = fs if at == "breakaway" else fc  # the friction that holds the stem at rest
     if fast_slides:  # F_c and F_v together from the slides faster than their median speed
         R = np.concatenate(moving_rows)
@@ -697,6 +713,16 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         fv = max(float(rest_force @ R[:, 3]) / den, 0.0) if den > 0 else 0.0
     out = {"k": float(k), "fc": float(fc), "fv": float(fv), "bias": float(kb / k)}
     return {**out, "dfs": float(top - fc)} if at == "breakaway" or fast_slides else out
+
+
+def _stop_directions(recs: list[Prepared]) -> set[int]:
+    """The directions of the slides that end at a rest of 0.1 s or more (the stops of the force
+    balances, :func:`_initial_baseline`)."""
+    out = set()
+    for r in recs:
+        runs = _runs(r.state)
+        out |= {s0 for (_, _, s0), (b0, b1, s1) in zip(runs, runs[1:]) if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt)}
+    return out
 
 
 def _balance(recs: list[Prepared], cfg: ReconcileConfig, vals: dict[str, float], **kw) -> dict[str, float]:
@@ -1558,6 +1584,9 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             baseline = again
     if not accepted and "no missing" not in message:
         message = "no missing effect found: " + message
+    if len(_stop_directions(recs)) == 1:
+        message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
+                    "the other (F_c is the least that held the stem through its rests) and a deadband cannot show")
     return Reconciliation(
         baseline=baseline, steps=tuple(steps), rounds=tuple(rounds), noise_floor=sigma,
         regime_share=share, regime_samples=counts, xcorr={"peak": rho, "lag_s": lag},
