@@ -638,19 +638,18 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
             sel = np.flatnonzero((state != 0) & (np.sign(xd) == state))
             moving_rows.append(np.column_stack([F[sel], r.x[sel], state[sel], xd[sel]]))
         runs = _runs(state)
-        for j, ((a0, a1, s0), (b0, b1, s1)) in enumerate(zip(runs, runs[1:])):
-            if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt):
-                # the end of the rest: a slow slide may still creep when it is first called at rest
-                tail = (slice(b1 - max((b1 - b0) // 3, 1), b1) if at == "tail"
-                        else slice(b0 + int(0.05 / r.dt), b0 + int(0.1 / r.dt)))
-                xe = float(np.median(r.x[tail]))
-                stops.append((xe, float(np.median(F[tail])), float(s0)))
-                if at == "breakaway" and j + 2 < len(runs):  # the stem breaks away again (its next run is a slide)
-                    breaks.append((float(np.median(r.x[b1 - max((b1 - b0) // 3, 1) : b1])), float(F[b1 - 1]),
-                                   float(runs[j + 2][2])))
-                if not fast_slides:  # F_v from the slides that end at a rest (below)
-                    sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
-                    slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
+        for j, (a0, a1, s0), (b0, b1) in _stops(r, runs):
+            # the end of the rest: a slow slide may still creep when it is first called at rest
+            tail = (slice(b1 - max((b1 - b0) // 3, 1), b1) if at == "tail"
+                    else slice(b0 + int(0.05 / r.dt), b0 + int(0.1 / r.dt)))
+            xe = float(np.median(r.x[tail]))
+            stops.append((xe, float(np.median(F[tail])), float(s0)))
+            if at == "breakaway" and j + 2 < len(runs):  # the stem breaks away again (its next run is a slide)
+                breaks.append((float(np.median(r.x[b1 - max((b1 - b0) // 3, 1) : b1])), float(F[b1 - 1]),
+                               float(runs[j + 2][2])))
+            if not fast_slides:  # F_v from the slides that end at a rest (below)
+                sel = np.arange(a0, a1)[np.sign(xd[a0:a1]) == s0]
+                slide_rows.append(np.column_stack([F[sel], r.x[sel], np.full(sel.size, s0), xd[sel]]))
     if not stops:
         travel = max(float(np.ptp(np.percentile(r.x, [1, 99]))) for r in recs)
         force = max(float(np.ptp(np.percentile(r.p_smooth, [1, 99]))) for r in recs) * cfg.sa
@@ -676,6 +675,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
                                       f"F_s = {fs:.3g} N: no slip jump in it")
     elif both and levels >= 3:
         k, kb, fc = np.linalg.lstsq(np.column_stack([S[:, 0], np.ones(len(S)), S[:, 2]]), S[:, 1], rcond=None)[0]
+
     def friction_and_bias(k: float) -> tuple[float, float]:
         """``k·x̄`` and ``F_c`` from the stops for a given spring; with stops in one direction only
         they trade one for the other, and ``F_c`` is the least that held the stem through every
@@ -715,14 +715,17 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
     return {**out, "dfs": float(top - fc)} if at == "breakaway" or fast_slides else out
 
 
+def _stops(r: Prepared, runs: list[tuple[int, int, int]]):
+    """The stops of the force balances (:func:`_initial_baseline`): slides that end at a rest of
+    0.1 s or more, as (index of the slide's run, the slide's run, the rest's (start, end))."""
+    for j, ((a0, a1, s0), (b0, b1, s1)) in enumerate(zip(runs, runs[1:])):
+        if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt):
+            yield j, (a0, a1, s0), (b0, b1)
+
+
 def _stop_directions(recs: list[Prepared]) -> set[int]:
-    """The directions of the slides that end at a rest of 0.1 s or more (the stops of the force
-    balances, :func:`_initial_baseline`)."""
-    out = set()
-    for r in recs:
-        runs = _runs(r.state)
-        out |= {s0 for (_, _, s0), (b0, b1, s1) in zip(runs, runs[1:]) if s0 != 0 and s1 == 0 and b1 - b0 >= int(0.1 / r.dt)}
-    return out
+    """The directions of the slides that end at a stop (:func:`_stops`)."""
+    return {s0 for r in recs for _, (_, _, s0), _ in _stops(r, _runs(r.state))}
 
 
 def _balance(recs: list[Prepared], cfg: ReconcileConfig, vals: dict[str, float], **kw) -> dict[str, float]:
@@ -1586,7 +1589,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         message = "no missing effect found: " + message
     if len(_stop_directions(recs)) == 1:
         message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
-                    "the other (F_c is the least that held the stem through its rests) and a deadband cannot show")
+                    "the other (F_c started at the least that held the stem through its rests) and a deadband cannot show")
     return Reconciliation(
         baseline=baseline, steps=tuple(steps), rounds=tuple(rounds), noise_floor=sigma,
         regime_share=share, regime_samples=counts, xcorr={"peak": rho, "lag_s": lag},
