@@ -399,6 +399,15 @@ def _effect_names(effect: str) -> tuple[str, ...]:
     return tuple("dfs" if n == "fs" else n for n in EFFECT_PARAMS[effect])
 
 
+def _null(vals: dict[str, float], effect: str, recs: list[Prepared]) -> bool:
+    """Effect ``effect`` of the model ``vals`` has size zero: its size parameter (lag, dead time,
+    deadband width, F_s − F_c) is within 1e-4 of its scale (:func:`_bounds`) of its lower bound 0.
+    Such an effect changes nothing; a fit that carries it owes its gain to the rest of the model
+    (e.g. the other stick rule, unseen draw 89 record 3: a lag of 1e-11 s named first)."""
+    name = _effect_names(effect)[0]
+    return vals.get(name, 0.0) <= 1e-4 * _bounds(name, vals, recs)[2]
+
+
 def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
     """Measured minus simulated position of each record (:func:`models.valve_effects.residual_effects`:
     :func:`models.valve_effects.simulate_effects` without its per-call checks and copies)."""
@@ -1422,6 +1431,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             sc = _score(_residuals(vals, recs, cfg, dv), recs)
             ref, ne, withs = sc_cur, n_eff, (with_,)
             dbic, t, gain, in_pred, reasons = judge(eff, withs, p_add, ref, sc, ne, t_crit)
+            for e in (eff, with_) if "+" in label else (eff,):
+                if _null(vals, e, recs):
+                    reasons.append(f"{e} fitted at size zero ({_effect_names(e)[0]} = {vals[_effect_names(e)[0]]:.3g}): "
+                                   "the gain is the refit of the rest of the model")
             crossed = False
             if cfg.cross_fit and all(r.startswith("held-out block improvement") for r in reasons):
                 cur2, cur2_sse, sc_cur2 = second_fold()
@@ -1547,15 +1560,24 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 evidence += (f"; {c.effect} fits the held-out blocks about as well (BIC {d_bic:+.1f} against "
                              f"{best_c.effect}, < 2): the record cannot tell them apart")
         if best_c.replaces:
-            # the swapped effect's step (and any after it) is refitted with its alternative
+            # the swapped effect's step (and any after it) is refitted with its alternative; an
+            # alternative fitted at size zero takes the swapped effect's step out with it
             old_eff, new_eff = best_c.replaces.split("->")
-            evidence += f"; with {best_c.effect}, {new_eff} fits the training blocks better than {old_eff} and replaces it"
             j = accepted.index(old_eff)
-            accepted[j] = new_eff
+            dropped = _null(best_v, new_eff, recs)
+            if dropped:
+                evidence += (f"; with {best_c.effect}, {old_eff} is not needed: the model that replaces it carries "
+                             f"{new_eff} at size zero, and both are taken out")
+                best_v = without(best_v, new_eff)
+                best_free = tuple(n for n in best_free if n not in _effect_names(new_eff))
+                del accepted[j], steps[j]
+            else:
+                evidence += f"; with {best_c.effect}, {new_eff} fits the training blocks better than {old_eff} and replaces it"
+                accepted[j] = new_eff
             for m in range(j, len(accepted)):
                 names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
                 start_m = {n: x for n, x in best_v.items() if n in names_m or n in ("dv", "nb")}
-                note = f"; replaced {old_eff} when {best_c.effect} was added" if m == j else ""
+                note = f"; replaced {old_eff} when {best_c.effect} was added" if m == j and not dropped else ""
                 steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note, start=True),
                                    indistinguishable_from=tuple(e for e in steps[m].indistinguishable_from
                                                                 if e != accepted[m]))

@@ -57,6 +57,25 @@ def test_clean_record_names_no_effect():
 
 
 @pytest.mark.slow
+def test_an_effect_fitted_at_size_zero_is_not_named():
+    # unseen draw 89, record 3 of the accuracy bench: a slip jump of 1.26 on a sine sweep behind a
+    # 0.3 s V/P lag (planted truth: the slip jump alone).  A deadband passed first (it halves F_c);
+    # with the slip jump, the swap's alternative actuator_lag fitted at tau = 1e-11 s and was named
+    # first: its gain was the other stick rule.  A swap to an effect of size zero takes the swapped
+    # effect out instead
+    from tests.bench.accuracy_reconcile import indep_record, sweep
+
+    valve = {"k": 230276.65295391157, "sa": 0.0445, "m": 1.0566658250869871, "fc": 341.9568059193955,
+             "fv": 5900.779948549098, "bias": 0.0007468645308784938, "tau_vp": 0.3}
+    t, p, x = indep_record(valve, sweep(10002), {"slip_jump": (1.2615869911479185,)}, 1.0258575646342716e-05,
+                           367.1831778992991, 10002)
+    r = reconcile(ValveData(t, p, x, "slip jump"), config=ReconcileConfig(sa=valve["sa"]))
+    assert r.effects == ["slip_jump"]
+    assert r.final.params["Fs"] / r.final.params["Fc"] == pytest.approx(1.26, rel=0.1)
+    assert r.final.rmse < 1.2 * r.noise_floor
+
+
+@pytest.mark.slow
 def test_hidden_dead_time_is_named_and_the_gap_shrinks():
     r = _run({"dead_time": (0.03,)}, seed=2)
     assert r.effects[:1] == ["dead_time"]
