@@ -412,3 +412,73 @@ def test_reconcile_accuracy():
     report("own generator", res_own)
     report("independent simulator", res_ind)
     print(f"total {time.perf_counter() - t0:.0f} s")
+
+
+# ----------------------------------------------------------------------------- chosen records from the command line
+
+
+def select(spec: str) -> list[tuple[str, dict]]:
+    """Records named by ``SPEC``: ``own:all``, ``own:I``, ``SEED:all``, ``SEED:pairs`` or ``SEED:I``
+    (``I`` counts from 0; ACCURACY.md numbers independent records from 1, so ``67:5`` is 67 #6 and
+    ``own:I`` is tag I).  Returns ``(tag, case)`` pairs."""
+    src, _, which = spec.partition(":")
+    cases = own_cases() if src == "own" else indep_cases(int(src))
+    if which == "all":
+        idx = range(len(cases))
+    elif which == "pairs":
+        idx = [i for i, c in enumerate(cases) if c["kind"] == "pair"]
+    else:
+        idx = [int(which)]
+    return [(f"{src}:{i}", cases[i]) for i in idx]
+
+
+def _run_tagged(item: tuple[str, dict]) -> dict:
+    tag, case = item
+    return {"tag": tag, **run_case(case)}
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT] [--workers N] [--against A.json]``:
+    run chosen records, print one line each and the report per source, save the results, and
+    with ``--against`` list the records whose verdict differs from an earlier run."""
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(prog="accuracy_reconcile")
+    ap.add_argument("specs", nargs="+")
+    ap.add_argument("--json")
+    ap.add_argument("--workers", type=int, default=WORKERS)
+    ap.add_argument("--against")
+    a = ap.parse_args(argv)
+    items = [it for s in a.specs for it in select(s)]
+    print(f"machine: {machine_note()}; workers {a.workers}; {len(items)} records", flush=True)
+    t0 = time.perf_counter()
+    res = []
+    with ProcessPoolExecutor(a.workers) as pool:
+        for r in pool.map(_run_tagged, items):
+            res.append(r)
+            print(f"[{r['tag']}] {r['kind']} {r['exc']} {r['hidden']} -> {r['effects']} base {r['base'] * 1e6:.1f} "
+                  f"final {r['final'] * 1e6:.1f} noise {r['noise'] * 1e6:.1f} µm {r['seconds']:.0f} s {r['error']}",
+                  flush=True)
+            if a.json:
+                with open(a.json, "w") as fh:
+                    json.dump(res, fh, default=float)
+    for src in dict.fromkeys(r["tag"].split(":")[0] for r in res):
+        report(f"source {src}", [r for r in res if r["tag"].split(":")[0] == src])
+    indep = [r for r in res if r.get("indep")]
+    if len({r["tag"].split(":")[0] for r in indep}) > 1:
+        report("all independent records above", indep)
+    if a.against:
+        with open(a.against) as fh:
+            old = {r["tag"]: r for r in json.load(fh)}
+        print(f"\nverdicts that differ from {a.against}:")
+        for r in res:
+            o = old.get(r["tag"])
+            if o is not None and o["effects"] != r["effects"]:
+                print(f"  {r['tag']} {r['kind']} {r['hidden']}: {o['effects']} -> {r['effects']} "
+                      f"(final {o['final'] * 1e6:.1f} -> {r['final'] * 1e6:.1f} µm, noise {r['noise'] * 1e6:.1f})")
+    print(f"total {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
