@@ -263,6 +263,36 @@ _TRUTH_NAMES = {"slip_jump": ("dfs",), "stribeck": ("dfs", "vs"), "actuator_lag"
                 "deadband": ("deadband",)}
 
 
+def truth_values(case: dict, cfg: ReconcileConfig, without: str | None = None) -> tuple[dict[str, float], list[str]]:
+    """The workflow's parameters of an independent record's truth (its simulator's parameters map
+    one-to-one onto them), with the effect ``without`` taken out; and the names of the parameters."""
+    from models import reconcile as rc
+
+    valve = case["valve"]
+    vals = dict(k=valve["k"], fc=valve["fc"], fv=valve["fv"], bias=valve["bias"], nb=cfg.stick_band)
+    names = list(rc._BASE)
+    for e, size in case["hidden"].items():
+        if e == without:
+            continue
+        truth = {"slip_jump": (valve["fc"] * (size[0] - 1),), "stribeck": (valve["fc"] * (size[0] - 1), size[-1])}
+        vals.update(zip(_TRUTH_NAMES[e], truth.get(e, size)))
+        names += _TRUTH_NAMES[e]
+    return vals, names
+
+
+def truth_ratio(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> float:
+    """RMSE of an independent record's truth, as the workflow simulates it (from the smoothed
+    recorded pressure, no refit), over the measurement noise: how near the workflow's model family
+    and its pressure filter come to the independent simulator on that record (1 = within the noise)."""
+    from models import reconcile as rc
+
+    cfg = ReconcileConfig(sa=case["valve"]["sa"])
+    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
+    vals, _ = truth_values(case, cfg)
+    e = rc._residuals(vals, [rec], cfg, 0.01 * rec.speed_max)[0]
+    return math.sqrt(float(np.mean(e**2))) / rec.sigma_x
+
+
 def pair_visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> dict[str, float]:
     """How far each hidden effect of an independent pair shows beside the other: the RMSE on the
     training blocks of the truth with that effect taken out (the Karnopp parameters and the
@@ -272,38 +302,34 @@ def pair_visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> 
     one-to-one onto the workflow's (independent simulator only), so this uses its private fit."""
     from models import reconcile as rc
 
-    valve, hidden = case["valve"], case["hidden"]
-    cfg = ReconcileConfig(sa=valve["sa"])
-    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, valve["sa"])
+    cfg = ReconcileConfig(sa=case["valve"]["sa"])
+    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
     dv = 0.01 * rec.speed_max
     out = {}
-    for gone in hidden:
-        vals = dict(k=valve["k"], fc=valve["fc"], fv=valve["fv"], bias=valve["bias"], nb=cfg.stick_band)
-        names = list(rc._BASE)
-        for e, size in hidden.items():
-            if e == gone:
-                continue
-            truth = {"slip_jump": (valve["fc"] * (size[0] - 1),), "stribeck": (valve["fc"] * (size[0] - 1), size[-1])}
-            vals.update(zip(_TRUTH_NAMES[e], truth.get(e, size)))
-            names += _TRUTH_NAMES[e]
+    for gone in case["hidden"]:
+        vals, names = truth_values(case, cfg, without=gone)
         fit = rc._fit(vals, tuple(names), [rec], cfg, dv, use="train", max_nfev=80)
         e = rc._residuals(fit.vals, [rec], cfg, dv)[0][rec.train]
         out[gone] = math.sqrt(float(np.mean(e**2))) / rec.sigma_x
     return out
 
 
-def run_case(case: dict) -> dict:
-    t0 = time.perf_counter()
+def make_record(case: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(t, p, x, S_a)`` of one case."""
     nx, npr = case["noise"]
     if case.get("indep"):
         maker = {"random-steps": random_steps, "ramps": ramps, "sine-sweep": sweep, "prbs": prbs}[case["exc"]]
         t, p, x = indep_record(case["valve"], maker(case["seed"]), case["hidden"], nx, npr, case["seed"])
-        sa = case["valve"]["sa"]
-    else:
-        params = PRESETS[case["preset"]].replace(tau_p=case["tau_vp"])
-        rec = hidden_record(params, own_excitation(case["exc"], case["seed"]), case["hidden"], noise_x=nx,
-                            noise_p=npr, seed=case["seed"])
-        t, p, x, sa = rec.t, rec.p, rec.x, params.sa
+        return t, p, x, case["valve"]["sa"]
+    params = PRESETS[case["preset"]].replace(tau_p=case["tau_vp"])
+    rec = hidden_record(params, own_excitation(case["exc"], case["seed"]), case["hidden"], noise_x=nx,
+                        noise_p=npr, seed=case["seed"])
+    return rec.t, rec.p, rec.x, params.sa
+
+
+def run_case(case: dict) -> dict:
+    t0 = time.perf_counter()
+    t, p, x, sa = make_record(case)
     try:
         r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa))
         out = dict(effects=r.effects, base=r.baseline.rmse, final=r.final.rmse, noise=r.noise_floor, error="")
@@ -437,6 +463,17 @@ def _run_tagged(item: tuple[str, dict]) -> dict:
     return {"tag": tag, **run_case(case)}
 
 
+def _truth_tagged(item: tuple[str, dict]) -> dict:
+    tag, case = item
+    try:
+        r = truth_ratio(case, *make_record(case)[:3])
+    except ModelError as exc:  # a record the workflow refuses
+        r, err = math.nan, repr(exc)[:200]
+    else:
+        err = ""
+    return {"tag": tag, **case, "truth": r, "error": err}
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT] [--workers N] [--against A.json]``:
     run chosen records, print one line each and the report per source, save the results, and
@@ -449,10 +486,26 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--json")
     ap.add_argument("--workers", type=int, default=WORKERS)
     ap.add_argument("--against")
+    ap.add_argument("--truth", action="store_true", help="independent records only: the truth's RMSE over the noise "
+                    "(truth_ratio) instead of a reconcile run")
     a = ap.parse_args(argv)
     items = [it for s in a.specs for it in select(s)]
     print(f"machine: {machine_note()}; workers {a.workers}; {len(items)} records", flush=True)
     t0 = time.perf_counter()
+    if a.truth:
+        items = [it for it in items if it[1].get("indep")]
+        with ProcessPoolExecutor(a.workers) as pool:
+            res = list(pool.map(_truth_tagged, items))
+        for r in res:
+            print(f"[{r['tag']}] {r['kind']} {r['exc']} {'+'.join(r['hidden']) or 'clean'} truth/noise {r['truth']:.2f} "
+                  f"{r['error']}")
+        v = np.array([r["truth"] for r in res if math.isfinite(r["truth"])])
+        print(f"{v.size} records: median {np.median(v):.3f}; above 1.1 × noise {np.sum(v > 1.1)}, above 1.5 × "
+              f"{np.sum(v > 1.5)}, above 2 × {np.sum(v > 2)}; total {time.perf_counter() - t0:.0f} s")
+        if a.json:
+            with open(a.json, "w") as fh:
+                json.dump(res, fh, default=float)
+        return
     res = []
     with ProcessPoolExecutor(a.workers) as pool:
         for r in pool.map(_run_tagged, items):
