@@ -16,7 +16,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    force reverses it; the recorded pressure's noise is not a force on it).  Whether the band or
    eq. (2) as written fits the record better is chosen on the training blocks when the baseline
    is fitted (every later model keeps that rule), and again by the friction candidates
-   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7).
+   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7).  In the 0.2 s after each jump of the
+   recorded pressure (a raw command step, :func:`models.valve_effects.jump_windows`) the model
+   takes ``substeps`` integration steps per sample, one elsewhere: after a jump the one-step
+   scheme's error shows above the noise, on a smooth pressure it does not.
 2. **Where they disagree** (:func:`regimes`, :func:`regime_table`): every sample is put in one
    regime (after a reversal, breakaway, step transient, sliding fast/slow, stuck, steady) and the
    squared residual is split by regime; the residual–input cross-correlation is reported.

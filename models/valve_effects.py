@@ -506,16 +506,16 @@ def simulate_effects(
     re-seated (multiple shooting from measured rest states, used by :mod:`models.reconcile`).
 
     ``substeps``: integration steps per sample (the pressure held at each sample over its
-    sub-steps).  The default, one, is what the workflow fits; more sub-steps converge (first
-    order) to the continuous solution of eq. (1)–(2) for that held pressure and measure the
-    one-step scheme's discretisation error: 0.7 % of an 8 mm slide after a pressure step at one
-    step, 0.01 % at 64 (``tests/test_valve_effects.py``, against the analytic step response).
-    On a smooth pressure the hold is half a sample early, which the one-step scheme's half-step
-    lag cancels: there more sub-steps are not closer to the continuous valve.  After a raw
-    command step (a jump of the held pressure) they are: a one-step slide reads up to twice the
-    position noise off the truth on a PRBS record.  ``fine`` (bool, one per sample; default
-    all) says which samples take the sub-steps; the others take one step, bit for bit as
-    ``substeps = 1`` (:func:`jump_windows` marks the slides after command steps).
+    sub-steps).  More sub-steps converge (first order) to the continuous solution of
+    eq. (1)–(2) for that held pressure: the one-step scheme is off by 0.7 % of an 8 mm slide
+    after a pressure step, 0.01 % at 64 sub-steps (``tests/test_valve_effects.py``, against the
+    analytic step response).  On a smooth pressure the hold is half a sample early, which the
+    one-step scheme's half-step lag cancels: there more sub-steps are not closer to the
+    continuous valve.  After a raw command step (a jump of the held pressure) they are: there
+    a one-step slide reads up to twice the position noise off the truth on a PRBS record.
+    ``fine`` (bool, one per sample; default: all) says which samples take the sub-steps; the
+    others take one step, bit for bit as ``substeps = 1``.  The workflow sub-steps the samples
+    :func:`jump_windows` marks (:class:`models.reconcile.ReconcileConfig`, ``substeps``).
 
     ``band``: stick band ``b`` (N, >= 0; one number or one per sample), the force within which
     the stick/slip decisions of eq. (2) are not taken on the recorded pressure.  It stands for
