@@ -16,7 +16,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    force reverses it; the recorded pressure's noise is not a force on it).  Whether the band or
    eq. (2) as written fits the record better is chosen on the training blocks when the baseline
    is fitted (every later model keeps that rule), and again by the friction candidates
-   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7).
+   (:func:`_grid`; ACCURACY.md, issue 8 sessions 6–7).  In the 0.2 s after each jump of the
+   recorded pressure (a raw command step, :func:`models.valve_effects.jump_windows`) the model
+   takes ``substeps`` integration steps per sample, one elsewhere: after a jump the one-step
+   scheme's error shows above the noise, on a smooth pressure it does not.
 2. **Where they disagree** (:func:`regimes`, :func:`regime_table`): every sample is put in one
    regime (after a reversal, breakaway, step transient, sliding fast/slow, stuck, steady) and the
    squared residual is split by regime; the residual–input cross-correlation is reported.
@@ -84,7 +87,7 @@ from threadpoolctl import threadpool_limits
 from .errors import IdentificationError, ModelConfigError
 from .identification import ValveData, _runs, check_record, noise_std, sg_derivatives, slow_velocity
 from .karnopp import M_KG, SA_M2
-from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, residual_effects
+from .valve_effects import EFFECT_PARAMS, EFFECTS, EffectValve, actuator_pressure, jump_windows, residual_effects
 
 __all__ = [
     "REGIMES",
@@ -156,6 +159,13 @@ class ReconcileConfig:
         is fitted added together, from the force balances with both effects at once
         (:func:`_joint_starts`), and judged by the same tests: two hidden effects can each leave a
         model that only the other gets out of its basin.
+    substeps : integration sub-steps per sample in the 0.2 s after each jump of the recorded
+        pressure (a raw command step; :func:`models.valve_effects.jump_windows`), one step
+        elsewhere.  The one-step scheme is off by up to twice the position noise on the slides
+        after raw steps (clean PRBS records of the unseen draws read 1.3–2.2× the noise at the
+        truth); on a smooth or V/P-lagged pressure more sub-steps are no closer to the valve
+        (its half-step lag cancels the hold's lead).  4 since session 17 (ACCURACY.md issue 8);
+        1 is the one-step scheme everywhere.
     """
 
     sa: float = SA_M2
@@ -170,6 +180,7 @@ class ReconcileConfig:
     stick_band: float = 3.0
     threads: int = 2
     pair_search: bool = True
+    substeps: int = 4
 
     def __post_init__(self) -> None:
         for name in ("sa", "m", "block_s", "alpha", "min_gain"):
@@ -185,6 +196,9 @@ class ReconcileConfig:
             raise ModelConfigError(f"ReconcileConfig.stick_band = {self.stick_band!r}: must be a finite number >= 0 (noise standard deviations)")
         if not (isinstance(self.threads, int) and self.threads >= 1):
             raise ModelConfigError(f"ReconcileConfig.threads = {self.threads!r}: the number of fitting workers must be an integer >= 1")
+        if not (isinstance(self.substeps, int) and 1 <= self.substeps <= 64):
+            raise ModelConfigError(f"ReconcileConfig.substeps = {self.substeps!r}: the sub-steps per sample after a "
+                                   "pressure jump must be an integer from 1 to 64")
         if self.max_effects < 0 or self.max_nfev < 5:
             raise ModelConfigError("ReconcileConfig: max_effects must be >= 0 and max_nfev >= 5")
 
@@ -344,6 +358,7 @@ class Prepared:
     no_band: np.ndarray  # zeros: the stick band of a model without one (read only; one per record, not per simulation)
     sa: float = SA_M2  # diaphragm area the record is fitted with, m²
     p_noise: np.ndarray | None = None  # std of the recorded-pressure noise left in p_smooth, Pa per sample
+    fine: np.ndarray | None = None  # 1.0 in the slides after pressure jumps (sub-stepped, see ReconcileConfig.substeps); None: no jump
 
 
 def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepared:
@@ -351,6 +366,7 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
     dt = check_record(data)
     x = np.asarray(data.x, float)
     ps, p_noise = smooth_pressure(np.asarray(data.p, float), dt, return_noise=True)
+    fine = jump_windows(ps, dt, p_noise, floor=noise_std(np.asarray(data.p, float)))
     lab = regimes(x, ps, dt)
     t = np.asarray(data.t, float)
     block = ((t - t[0]) // block_s).astype(int)
@@ -369,7 +385,7 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
         data=data, dt=dt, p_smooth=ps, x=x, x0=float(np.median(x[:31])), labels=lab, train=split[block],
         block=block, sigma_x=noise_std(x), speed_typ=float(np.median(speed[moving])) if moving.any() else 1e-3,
         speed_max=float(np.max(speed)), rest=rest, state=state, xd=sg_derivatives(x, dt).xd,
-        no_band=np.zeros(x.size), sa=sa, p_noise=p_noise,
+        no_band=np.zeros(x.size), sa=sa, p_noise=p_noise, fine=fine.astype(float) if fine.any() else None,
     )
 
 
@@ -417,7 +433,8 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
     def band(r: Prepared) -> np.ndarray:
         return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else r.no_band
 
-    return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r)) for r in recs]
+    return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r),
+                             substeps=cfg.substeps, fine=r.no_band if r.fine is None else r.fine) for r in recs]
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:

@@ -333,7 +333,7 @@ _STICK_BANDS = 3.0
 
 
 @compile_cached
-def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, rest, bias, band, nsub, xm):  # pragma: no cover - compiled
+def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, half, rest, bias, band, nsub, xm, fine):  # pragma: no cover - compiled
     """:func:`models.karnopp.karnopp_step` over a whole pressure record (tau_p = 0), with the
     Stribeck sliding friction solved implicitly, and the two stick/slip events placed inside the
     step instead of on the sample grid (so that the trajectory is continuous in the parameters):
@@ -349,9 +349,10 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
 
     ``nsub`` sub-steps of ``h / nsub`` per sample, the pressure held at ``p[i]`` over the
     sub-steps of sample ``i`` (the zero-order hold the one-step scheme already assumes for the
-    force term); outputs at the samples.  ``nsub = 1`` is the production scheme; larger values
-    converge to the continuous solution for that held pressure (used to check the scheme's
-    discretisation error, see :func:`simulate_effects`).
+    force term); outputs at the samples.  Larger values converge to the continuous solution for
+    that held pressure (see :func:`simulate_effects`).  ``fine`` (same length; empty: every
+    sample) marks the samples that take the ``nsub`` sub-steps; the others take one step of ``h``,
+    bit for bit the one-step scheme (:func:`jump_windows`: the slides after raw command steps).
 
     The transmitter reading ``y`` follows the stem through a backlash of half-width ``half``.
     ``rest`` (same length, NaN = none) holds measured rest positions (measured coordinate; the
@@ -394,18 +395,25 @@ def _karnopp_kernel(p, h, m, k, fc, fs, fv, vs, dv, sa, x0, v0, x_min, x_max, ha
     x = x0
     y = x0
     v = v0
-    h = h / nsub
-    kh2 = k * h * h
-    A = m + h * fv + kh2
+    hc = h  # one step per sample where not fine
+    Ac = m + hc * fv + k * hc * hc
+    u1c, u2c = _fold_speeds(Ac, hc, fc, fs, vs)  # where the step equation is not monotone (see _slide_speed)
+    hf = h / nsub
+    Af = m + hf * fv + k * hf * hf
+    u1f, u2f = _fold_speeds(Af, hf, fc, fs, vs)
     fs0 = fs if vs > 0.0 else fc  # sliding friction as the speed goes to zero
     f_prev = sa * p[0] - k * x
     free = 0.0  # direction of a stop inside the stick band (0: none; the stem is held by F_s)
     uc, ec = -1.0, 0.0  # the Stribeck term's last evaluation (see _slide_speed; none yet)
-    u1, u2 = _fold_speeds(A, h, fc, fs, vs)  # where the step equation is not monotone (see _slide_speed)
     resid = xm.size == n
+    marked = fine.size == n
     for i in range(n):
         b = band[i]
-        for _ in range(nsub):
+        if marked and fine[i] == 0.0:
+            ns, h, A, u1, u2 = 1, hc, Ac, u1c, u2c
+        else:
+            ns, h, A, u1, u2 = nsub, hf, Af, u1f, u2f
+        for _ in range(ns):
             f_net = sa * p[i] - k * x
             g = m * v + h * f_net
             if abs(v) < dv and (b <= 0.0 or v == 0.0):
@@ -487,6 +495,7 @@ def simulate_effects(
     x0_meas: float | None = None,
     rest_meas: np.ndarray | None = None,
     substeps: int = 1,
+    fine: np.ndarray | None = None,
     band: float | np.ndarray = 0.0,
 ) -> EffectSim:
     """Simulate the extended valve driven by the recorded pressure ``p`` (Pa, one per step of
@@ -497,12 +506,16 @@ def simulate_effects(
     re-seated (multiple shooting from measured rest states, used by :mod:`models.reconcile`).
 
     ``substeps``: integration steps per sample (the pressure held at each sample over its
-    sub-steps).  The default, one, is what the workflow fits; more sub-steps converge (first
-    order) to the continuous solution of eq. (1)–(2) for that held pressure and measure the
-    one-step scheme's discretisation error: 0.7 % of an 8 mm slide after a pressure step at one
-    step, 0.01 % at 64 (``tests/test_valve_effects.py``, against the analytic step response).
-    On a smooth pressure the hold is half a sample early, which the one-step scheme's half-step
-    lag cancels: there more sub-steps are not closer to the continuous valve.
+    sub-steps).  More sub-steps converge (first order) to the continuous solution of
+    eq. (1)–(2) for that held pressure: the one-step scheme is off by 0.7 % of an 8 mm slide
+    after a pressure step, 0.01 % at 64 sub-steps (``tests/test_valve_effects.py``, against the
+    analytic step response).  On a smooth pressure the hold is half a sample early, which the
+    one-step scheme's half-step lag cancels: there more sub-steps are not closer to the
+    continuous valve.  After a raw command step (a jump of the held pressure) they are: there
+    a one-step slide reads up to twice the position noise off the truth on a PRBS record.
+    ``fine`` (bool, one per sample; default: all) says which samples take the sub-steps; the
+    others take one step, bit for bit as ``substeps = 1``.  The workflow sub-steps the samples
+    :func:`jump_windows` marks (:class:`models.reconcile.ReconcileConfig`, ``substeps``).
 
     ``band``: stick band ``b`` (N, >= 0; one number or one per sample), the force within which
     the stick/slip decisions of eq. (2) are not taken on the recorded pressure.  It stands for
@@ -536,8 +549,14 @@ def simulate_effects(
     band_a = np.asarray(band, dtype=float)
     if band_a.shape not in ((), p.shape) or not np.all(np.isfinite(band_a)) or np.any(band_a < 0):
         raise ModelConfigError("band must be a finite force >= 0 (N), one number or one per pressure sample")
+    if fine is None:
+        marks = _NO_MEAS
+    else:
+        marks = np.asarray(fine, dtype=float)
+        if marks.shape != p.shape:
+            raise ModelConfigError("fine must have the length of p (one mark per pressure sample)")
     x, v, xm = _kernel(valve, pa, float(dt), x0, rest, np.array(np.broadcast_to(band_a, p.shape)),  # a writable copy: one compiled type
-                       int(substeps), _NO_MEAS)
+                       int(substeps), _NO_MEAS, marks)
     return EffectSim(p_act=pa, x=x, v=v, x_meas=xm)
 
 
@@ -545,19 +564,49 @@ _NO_MEAS = np.empty(0)
 
 
 def _kernel(valve: EffectValve, pa: np.ndarray, dt: float, x0: float, rest: np.ndarray, band: np.ndarray, substeps: int,
-            x_meas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            x_meas: np.ndarray, fine: np.ndarray = _NO_MEAS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return _karnopp_kernel(pa, dt, valve.m, valve.k, valve.fc, valve.fs_eff, valve.fv, valve.vs, valve.dv, valve.sa, x0,
-                           0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, rest, valve.bias, band, substeps, x_meas)
+                           0.0, valve.x_min, valve.x_max, 0.5 * valve.deadband, rest, valve.bias, band, substeps, x_meas,
+                           fine)
 
 
 def residual_effects(valve: EffectValve, p: np.ndarray, dt: float, x_meas: np.ndarray, *, x0_meas: float,
-                     rest_meas: np.ndarray, band: np.ndarray) -> np.ndarray:
-    """``x_meas − simulate_effects(valve, p, dt, x0_meas=x0_meas, rest_meas=rest_meas, band=band).x_meas``,
-    bit for bit, without its input checks and array copies: for a fit that simulates one checked
-    record hundreds of times (:mod:`models.reconcile`).  ``p``, ``x_meas``, ``rest_meas`` and
-    ``band`` are contiguous float arrays of one length (``band`` one force per sample), one step."""
+                     rest_meas: np.ndarray, band: np.ndarray, substeps: int = 1,
+                     fine: np.ndarray = _NO_MEAS) -> np.ndarray:
+    """``x_meas − simulate_effects(valve, p, dt, x0_meas=x0_meas, rest_meas=rest_meas, band=band,
+    substeps=substeps, fine=fine).x_meas``, bit for bit, without its input checks and array
+    copies: for a fit that simulates one checked record hundreds of times
+    (:mod:`models.reconcile`).  ``p``, ``x_meas``, ``rest_meas``, ``band`` and ``fine`` (if given)
+    are contiguous float arrays of one length (``band`` one force per sample)."""
     pa = actuator_pressure(p, dt, valve.tau, valve.theta)
-    return _kernel(valve, pa, dt, float(x0_meas) + valve.bias, rest_meas, band, 1, x_meas)[2]
+    return _kernel(valve, pa, dt, float(x0_meas) + valve.bias, rest_meas, band, substeps, x_meas, fine)[2]
+
+
+def jump_windows(p: np.ndarray, dt: float, noise: np.ndarray | float, *, floor: float = 0.0,
+                 window_s: float = 0.2) -> np.ndarray:
+    """Samples (bool, one per sample) in the ``window_s`` s after each jump of the pressure
+    record ``p`` (Pa, one per ``dt`` s): the slides after raw command steps, where the one-step
+    scheme of :func:`simulate_effects` is off by up to twice the position noise and sub-steps
+    are not (on a smooth pressure they are no closer to the valve).
+
+    A jump is a change ``|Δp_i|`` more than four times both neighbouring changes and more than
+    ``max(6·noise_i, floor)`` (``noise``: the std of the noise left in ``p``, one number or one
+    per sample; ``floor``: a least jump, Pa).  A step behind a V/P lag spreads over several
+    samples of similar change and is no jump; white noise beyond six standard deviations is as
+    good as never seen."""
+    p = np.asarray(p, dtype=float)
+    out = np.zeros(p.size, dtype=bool)
+    if p.size < 4:
+        return out
+    d = np.abs(np.diff(p))  # d[j] = |p[j+1] - p[j]|
+    prev = np.concatenate(([0.0], d[:-1]))
+    nxt = np.concatenate((d[1:], [0.0]))
+    lim = np.maximum(6.0 * np.broadcast_to(np.asarray(noise, dtype=float), p.shape)[1:], floor)
+    jumps = np.flatnonzero((d > 4.0 * prev) & (d > 4.0 * nxt) & (d > lim)) + 1  # the first sample after the jump
+    width = max(int(round(window_s / dt)), 1)
+    for j in jumps:
+        out[j:j + width] = True
+    return out
 
 
 # --------------------------------------------------------------------------- hidden effects
@@ -646,6 +695,7 @@ def hidden_record(
     noise_p: float = 200.0,
     seed: int | None = 0,
     dt: float = 1e-3,
+    substeps: int = 4,
 ) -> HiddenRecord:
     """Simulate a bench test of ``params`` with hidden effects (see :func:`hide_effects`).
 
@@ -653,14 +703,16 @@ def hidden_record(
     :func:`models.valve_tests.bench_record`); that pressure is what is recorded.  The actuator
     sees it through the hidden dead time and lag; the stem moves by eq. (1)–(2) with the hidden
     friction; the transmitter adds the hidden deadband; white Gaussian noise (seeded) is added to
-    the recorded pressure and position.
+    the recorded pressure and position.  The slides after raw command steps take ``substeps``
+    sub-steps per sample (:func:`jump_windows`), as :func:`models.reconcile.reconcile` fits them.
     """
     from .valve_tests import Excitation, excitation
 
     exc = test if isinstance(test, Excitation) else excitation(test, dt)
     valve = hide_effects(EffectValve.from_karnopp(params), hidden or {})
     p_rec = actuator_pressure(exc.p_cmd, exc.dt, params.tau_p, 0.0)
-    sim = simulate_effects(valve, p_rec, exc.dt)
+    fine = jump_windows(p_rec, exc.dt, 0.0, floor=1e-9 * max(float(np.ptp(p_rec)), 1.0))
+    sim = simulate_effects(valve, p_rec, exc.dt, substeps=substeps, fine=fine)
     rng = np.random.default_rng(seed)
     p = p_rec + noise_p * rng.standard_normal(p_rec.size)
     x = sim.x_meas + noise_x * rng.standard_normal(p_rec.size)

@@ -15,6 +15,7 @@ from models.valve_effects import (
     actuator_pressure,
     hidden_record,
     hide_effects,
+    jump_windows,
     parse_hide,
     residual_effects,
     simulate_effects,
@@ -82,6 +83,12 @@ def test_the_fit_residual_is_the_simulated_record_bit_for_bit():
     sim = simulate_effects(valve, p, 1e-3, x0_meas=0.0, rest_meas=rest, band=band)
     assert np.ptp(sim.x) > 1e-3  # the stem moves
     assert np.array_equal(residual_effects(valve, p, 1e-3, x, x0_meas=0.0, rest_meas=rest, band=band), x - sim.x_meas)
+    fine = jump_windows(p, 1e-3, 0.0, window_s=0.05).astype(float)  # the 50 ms after each step
+    assert 0.3 < fine.mean() < 0.9
+    sub = simulate_effects(valve, p, 1e-3, x0_meas=0.0, rest_meas=rest, band=band, substeps=4, fine=fine)
+    assert not np.array_equal(sub.x_meas, sim.x_meas)
+    assert np.array_equal(residual_effects(valve, p, 1e-3, x, x0_meas=0.0, rest_meas=rest, band=band, substeps=4,
+                                           fine=fine), x - sub.x_meas)
 
 
 def test_deadband_reading_stays_put_until_the_stem_moves_half_the_width_past_it():
@@ -162,9 +169,36 @@ def test_substeps_converge_to_the_step_response_of_eq_1():
     for n in (1, 4, 16):
         assert 3.0 < err[n] / err[4 * n] < 5.0  # first order: 4 times the sub-steps, a quarter of the error
     assert err[64] < 1e-6
-    assert err[1] < 0.01 * zinf  # the production scheme: within 1 % of an 8 mm step
+    assert err[1] < 0.01 * zinf  # the one-step scheme: within 1 % of an 8 mm step
     with pytest.raises(ModelConfigError):
         simulate_effects(valve, p, dt, substeps=0)
+    # sub-steps only in the 0.2 s after the step (jump_windows): there the full sub-stepped
+    # response, before it the one-step one (the stem is at rest: the same)
+    fine = np.zeros(p.size, bool)
+    fine[100:300] = True
+    part = simulate_effects(valve, p, dt, x0_meas=x0, substeps=4, fine=fine).x
+    full = simulate_effects(valve, p, dt, x0_meas=x0, substeps=4).x
+    assert np.max(np.abs(part[:300] - full[:300])) < 1e-12
+    assert np.max(np.abs(part[:300] - x0 - z[:300])) < 0.3 * err[1]
+    with pytest.raises(ModelConfigError):
+        simulate_effects(valve, p, dt, substeps=4, fine=fine[:-1])
+
+
+def test_jump_windows_flag_command_steps_only():
+    # planted: a raw 30 kPa command step at sample 1000, the same step behind a 50 ms V/P lag, and
+    # white noise of 200 Pa; a 100 Pa seam (a smoother's join) is a jump only without a floor
+    dt, n, sd = 1e-3, 3000, 200.0
+    rng = np.random.default_rng(11)
+    raw = np.where(np.arange(n) < 1000, 40e3, 70e3)
+    got = jump_windows(raw, dt, 0.0)
+    assert np.array_equal(np.flatnonzero(got), np.arange(1000, 1200))
+    lagged = actuator_pressure(raw, dt, 0.05, 0.0)
+    assert not jump_windows(lagged, dt, 0.0).any()
+    noisy = 50e3 + sd * rng.standard_normal(n)
+    assert not jump_windows(noisy, dt, sd).any()
+    seam = np.where(np.arange(n) < 2000, 50e3, 50.1e3)
+    assert jump_windows(seam, dt, 0.0).any()
+    assert not jump_windows(seam, dt, 0.0, floor=sd).any()
 
 
 # --------------------------------------------------------------------------- stick band
