@@ -358,15 +358,15 @@ class Prepared:
     no_band: np.ndarray  # zeros: the stick band of a model without one (read only; one per record, not per simulation)
     sa: float = SA_M2  # diaphragm area the record is fitted with, m²
     p_noise: np.ndarray | None = None  # std of the recorded-pressure noise left in p_smooth, Pa per sample
-    fine: np.ndarray | None = None  # 1.0 in the slides after pressure jumps (sub-stepped, see ReconcileConfig.substeps); None: no jump
+    fine: np.ndarray | None = None  # 1.0 in the slides after pressure jumps (sub-stepped, see ReconcileConfig.substeps), else 0.0
 
 
 def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepared:
     """Check a record (:func:`models.identification.check_record`) and prepare it."""
     dt = check_record(data)
     x = np.asarray(data.x, float)
-    ps, p_noise = smooth_pressure(np.asarray(data.p, float), dt, return_noise=True)
-    fine = jump_windows(ps, dt, p_noise, floor=noise_std(np.asarray(data.p, float)))
+    p = np.asarray(data.p, float)
+    ps, p_noise = smooth_pressure(p, dt, return_noise=True)
     lab = regimes(x, ps, dt)
     t = np.asarray(data.t, float)
     block = ((t - t[0]) // block_s).astype(int)
@@ -385,7 +385,8 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepare
         data=data, dt=dt, p_smooth=ps, x=x, x0=float(np.median(x[:31])), labels=lab, train=split[block],
         block=block, sigma_x=noise_std(x), speed_typ=float(np.median(speed[moving])) if moving.any() else 1e-3,
         speed_max=float(np.max(speed)), rest=rest, state=state, xd=sg_derivatives(x, dt).xd,
-        no_band=np.zeros(x.size), sa=sa, p_noise=p_noise, fine=fine.astype(float) if fine.any() else None,
+        no_band=np.zeros(x.size), sa=sa, p_noise=p_noise,
+        fine=jump_windows(ps, dt, p_noise, floor=noise_std(p)).astype(float),
     )
 
 
