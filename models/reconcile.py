@@ -356,9 +356,9 @@ class Prepared:
     state: np.ndarray  # motion state per sample (:func:`motion_state`: +1, −1, 0 = at rest)
     xd: np.ndarray  # stem velocity (Appendix A, :func:`models.identification.sg_derivatives`: follows fast slides too)
     no_band: np.ndarray  # zeros: the stick band of a model without one (read only; one per record, not per simulation)
+    fine: np.ndarray  # 1.0 in the slides after pressure jumps (sub-stepped, see ReconcileConfig.substeps), else 0.0
     sa: float = SA_M2  # diaphragm area the record is fitted with, m²
     p_noise: np.ndarray | None = None  # std of the recorded-pressure noise left in p_smooth, Pa per sample
-    fine: np.ndarray | None = None  # 1.0 in the slides after pressure jumps (sub-stepped, see ReconcileConfig.substeps), else 0.0
 
 
 def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2) -> Prepared:
@@ -435,7 +435,7 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
         return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else r.no_band
 
     return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r),
-                             substeps=cfg.substeps, fine=r.no_band if r.fine is None else r.fine) for r in recs]
+                             substeps=cfg.substeps, fine=r.fine) for r in recs]
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
