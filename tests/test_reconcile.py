@@ -18,6 +18,7 @@ from models.reconcile import (
     _alternatives,
     _fit,
     _fold_mask,
+    _global_fit,
     _grid,
     _initial_baseline,
     _pool,
@@ -169,6 +170,16 @@ def test_two_hidden_effects_that_no_single_effect_explains_are_found_together():
     # is nested in it) is not far from the baseline out of sample
     assert r.baseline.heldout_rmse < 2 * r.baseline.rmse
     assert r.steps[0].heldout_rmse < 2 * r.baseline.heldout_rmse
+
+
+def test_cli_global_search_flag(tmp_path):
+    # a clean record fits within the noise: the flag is accepted and no effect is named
+    data = tmp_path / "clean.csv"
+    assert main(["simulate", "valve", "--test", "isa-steps", "--preset", "low", "--vp-lag", "0", "--seed", "5",
+                 "--out", str(data)]) == 0
+    js = tmp_path / "out.json"
+    assert main(["reconcile", str(data), "--global-search", "--json", str(js)]) == 0
+    assert json.loads(js.read_text())["effects"] == []
 
 
 def test_cli_errors_are_one_line(tmp_path, capsys):
@@ -450,3 +461,45 @@ def test_the_result_does_not_depend_on_the_number_of_fitting_threads():
     assert one["effects"] and one == two == three
     with pytest.raises(ModelConfigError, match="threads"):
         ReconcileConfig(threads=0)
+
+
+def test_the_global_search_finds_a_hidden_deadband_from_the_record_alone():
+    # planted truth: the low valve with a 0.8 mm deadband on the ISA steps.  The search starts
+    # from no model: its ranges are read from the record, and it lands at the truth's deadband
+    # and spring with the training blocks fitted near the noise (at the coarse rate, blocks of 4
+    # samples: the truth itself reads 1.3 times the noise there)
+    params = PRESETS["low"].replace(tau_p=0.0)
+    rec = hidden_record(params, SHORT, {"deadband": (0.8e-3,)}, seed=4)
+    cfg = ReconcileConfig()
+    r = prepare(ValveData(rec.t, rec.p, rec.x, "deadband"), cfg.block_s, cfg.sa)
+    dv = 0.01 * r.speed_max
+    vals, cost = _global_fit(("deadband",), [r], cfg, dv, {"nb": cfg.stick_band, "dv": dv})
+    assert cost < 1.3**2
+    assert vals["deadband"] == pytest.approx(0.8e-3, rel=0.2)
+    assert vals["k"] == pytest.approx(params.k, rel=0.25)
+    with pytest.raises(ModelConfigError, match="global_coarse = 0"):
+        ReconcileConfig(global_coarse=0)
+    with pytest.raises(ModelConfigError, match="global_excess = -1"):
+        ReconcileConfig(global_excess=-1)
+
+
+@pytest.mark.slow
+def test_a_pair_whose_basin_no_local_start_reaches_is_found_by_the_global_search():
+    # unseen draw 113, record 25 of the accuracy bench: a slip jump of 1.31 and a 0.13 s dead time
+    # on random steps behind a 1 s V/P lag (planted truth).  The local search names the slip jump
+    # and stops at 9 times the noise; the global search (ReconcileConfig.global_search) finds the
+    # dead time beside it (opt-in: `loopwatch reconcile --global-search`)
+    from dataclasses import replace
+
+    from tests.bench.accuracy_reconcile import indep_record, random_steps
+
+    valve = {"k": 146749.32857289966, "sa": 0.03, "m": 1.4981990337730688, "fc": 447.3749960602288,
+             "fv": 3852.38033168509, "bias": 0.00028583367707964516, "tau_vp": 1.0}
+    hidden = {"slip_jump": (1.3106462651970632,), "dead_time": (0.13165614260607741,)}
+    t, p, x = indep_record(valve, random_steps(2724), hidden, 5.849589853677187e-06, 300.70066498210474, 2724)
+    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=valve["sa"])
+    assert "dead_time" not in reconcile(data, config=cfg).effects
+    r = reconcile(data, config=replace(cfg, global_search=True))
+    assert set(hidden) <= set(r.effects)
+    assert r.final.params["theta_s"] == pytest.approx(0.1317, rel=0.2)
+    assert r.final.rmse < 1.3 * r.noise_floor

@@ -39,6 +39,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stick-band", type=float, default=ReconcileConfig.stick_band, metavar="SD",
                    help="stick band of the fitted models in standard deviations of the recorded-pressure noise "
                         "(default %(default)s; 0: the stick/slip rule of eq. 2 as written)")
+    p.add_argument("--global-search", action="store_true",
+                   help="when the local search stops above the noise, fit every candidate added to the accepted "
+                        "effects by a global search (differential evolution) too: finds some pairs the local "
+                        "search misses, and can take several times longer (ReconcileConfig.global_search)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", type=Path, default=None, metavar="OUT.html",
                    help="write a self-contained HTML report with plots")
@@ -154,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--stick-band {args.stick_band}: must be a finite number >= 0 (noise standard deviations)")
     data = read_valve_csv(args.data)
     sig = read_valve_csv(args.signature) if args.signature is not None else None
-    cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band)
+    cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band,
+                          global_search=args.global_search)
     r = reconcile(data, sig, cfg)
     lines = _lines(r)
     print("\n".join(lines))
