@@ -327,11 +327,11 @@ def make_record(case: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     return rec.t, rec.p, rec.x, params.sa
 
 
-def run_case(case: dict) -> dict:
+def run_case(case: dict, global_search: bool = False) -> dict:
     t0 = time.perf_counter()
     t, p, x, sa = make_record(case)
     try:
-        r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa))
+        r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa, global_search=global_search))
         out = dict(effects=r.effects, base=r.baseline.rmse, final=r.final.rmse, noise=r.noise_floor, error="")
     except Exception as exc:  # noqa: BLE001 - a failed case is counted, not fatal
         out = dict(effects=["error"], base=math.nan, final=math.nan, noise=math.nan, error=repr(exc)[:200])
@@ -458,9 +458,9 @@ def select(spec: str) -> list[tuple[str, dict]]:
     return [(f"{src}:{i}", cases[i]) for i in idx]
 
 
-def _run_tagged(item: tuple[str, dict]) -> dict:
-    tag, case = item
-    return {"tag": tag, **run_case(case)}
+def _run_tagged(item: tuple[str, dict, bool]) -> dict:
+    tag, case, global_search = item
+    return {"tag": tag, **run_case(case, global_search)}
 
 
 def _truth_tagged(item: tuple[str, dict]) -> dict:
@@ -475,7 +475,7 @@ def _truth_tagged(item: tuple[str, dict]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT] [--workers N] [--against A.json]``:
+    """``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT] [--workers N] [--against A.json] [--global-search]``:
     run chosen records, print one line each and the report per source, save the results, and
     with ``--against`` list the records whose verdict differs from an earlier run."""
     import argparse
@@ -486,6 +486,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--json")
     ap.add_argument("--workers", type=int, default=WORKERS)
     ap.add_argument("--against")
+    ap.add_argument("--global-search", action="store_true", help="reconcile with ReconcileConfig.global_search on")
     ap.add_argument("--truth", action="store_true", help="independent records only: the truth's RMSE over the noise "
                     "(truth_ratio) instead of a reconcile run")
     a = ap.parse_args(argv)
@@ -508,7 +509,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     res = []
     with ProcessPoolExecutor(a.workers) as pool:
-        for r in pool.map(_run_tagged, items):
+        for r in pool.map(_run_tagged, [(tag, case, a.global_search) for tag, case in items]):
             res.append(r)
             print(f"[{r['tag']}] {r['kind']} {r['exc']} {r['hidden']} -> {r['effects']} base {r['base'] * 1e6:.1f} "
                   f"final {r['final'] * 1e6:.1f} noise {r['noise'] * 1e6:.1f} µm {r['seconds']:.0f} s {r['error']}",
