@@ -491,15 +491,14 @@ def test_a_pair_whose_basin_no_local_start_reaches_is_found_by_the_global_search
     # dead time beside it (opt-in: `loopwatch reconcile --global-search`)
     from dataclasses import replace
 
-    from tests.bench.accuracy_reconcile import indep_record, random_steps
+    from tests.bench.accuracy_reconcile import make_record, select
 
-    valve = {"k": 146749.32857289966, "sa": 0.03, "m": 1.4981990337730688, "fc": 447.3749960602288,
-             "fv": 3852.38033168509, "bias": 0.00028583367707964516, "tau_vp": 1.0}
-    hidden = {"slip_jump": (1.3106462651970632,), "dead_time": (0.13165614260607741,)}
-    t, p, x = indep_record(valve, random_steps(2724), hidden, 5.849589853677187e-06, 300.70066498210474, 2724)
-    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=valve["sa"])
+    (_, case), = select("113:24")
+    assert case["hidden"] == {"slip_jump": (pytest.approx(1.3106, rel=1e-3),), "dead_time": (pytest.approx(0.1317, rel=1e-3),)}
+    t, p, x, sa = make_record(case)
+    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=sa)
     assert "dead_time" not in reconcile(data, config=cfg).effects
     r = reconcile(data, config=replace(cfg, global_search=True))
-    assert set(hidden) <= set(r.effects)
+    assert {"slip_jump", "dead_time"} <= set(r.effects)
     assert r.final.params["theta_s"] == pytest.approx(0.1317, rel=0.2)
     assert r.final.rmse < 1.3 * r.noise_floor
