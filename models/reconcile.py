@@ -184,8 +184,8 @@ class ReconcileConfig:
         runs (0.5: the model error's power is half the noise's).
     global_maxiter : generations of the global search (it stops earlier once the training blocks
         fit within 1.1 times the noise).
-    global_coarse : the global search simulates every ``global_coarse``-th sample
-        (:func:`_decimate`): 3–4 times cheaper, and its result is fitted again at the full rate.
+    global_coarse : the global search simulates the record in blocks of ``global_coarse``
+        samples (:func:`_decimate`): 3–4 times cheaper; its result is fitted again at the full rate.
     global_polish : the global fits (lowest coarse cost first) fitted again at the full rate and
         judged.
     """
