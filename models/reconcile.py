@@ -1536,6 +1536,16 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             reasons.append(f"only {in_pred:.0%} of its gain lies in the regimes it predicts ({', '.join(PREDICTS[eff])})")
         return dbic, t, gain, in_pred, reasons
 
+    def better_basin(vals: dict[str, float], cur: dict[str, float], cur_sse: float) -> dict[str, float] | None:
+        """The current model ``cur`` refitted from a candidate's fit ``vals`` with the candidate's
+        effect taken out, if that fits the training blocks better than ``cur`` by at least the
+        relevance bar ``min_gain``: the candidate's search merely found a better basin of the
+        model we already have.  Else None."""
+        again = {n: vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
+        again.update({n: cur[n] for n in ("dv", "nb") if n in cur})
+        again = _fit(again, free, recs, cfg, dv).vals
+        return again if train_sse(again) < cur_sse - cfg.min_gain * noise_pow * n_train else None
+
     while len(accepted) < cfg.max_effects:
         res_all_cur = _residuals(cur, recs, cfg, dv)  # one simulation of the current model per round
         sc_cur = _score(res_all_cur, recs)
@@ -1655,18 +1665,17 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             for (v, _), eff in searched[:cfg.global_polish]:  # the full-rate fits of the best coarse ones
                 names_g = _BASE + tuple(n for e in tuple(accepted) + (eff,) for n in _effect_names(e))
                 fit = _fit(v, names_g, recs, cfg, dv)
-                if train_sse(fit.vals) < cur_sse:
-                    polished.append((train_sse(fit.vals), eff, fit, names_g))
+                sse = train_sse(fit.vals)
+                if sse < cur_sse:
+                    polished.append((sse, eff, fit, names_g))
             polished.sort(key=lambda g: g[0])
             if polished:
                 # the global fit refits every parameter: most of its gain can be a better basin of
                 # the current model.  The current model refitted from the best global fit (its new
-                # effect taken out) first; if that takes the gain (the relevance bar min_gain),
-                # it becomes the current model and the candidates are tested again from it
-                again = {n: polished[0][2].vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
-                again.update({n: cur[n] for n in ("dv", "nb") if n in cur})
-                again = _fit(again, free, recs, cfg, dv).vals
-                if train_sse(again) < cur_sse - cfg.min_gain * noise_pow * n_train:
+                # effect taken out) first; if that takes the gain, it becomes the current model and
+                # the candidates are tested again from it
+                again = better_basin(polished[0][2].vals, cur, cur_sse)
+                if again is not None:
                     cur = again
                     carry = {e: f.vals for _, e, f, _ in polished}
                     if not accepted:
@@ -1704,10 +1713,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # basin of the model we already have (by at least the relevance bar min_gain): take it
             # and test the candidates again, each also started from its fit of this round
             # (a swapped-out effect's parameters come back from the current model)
-            again = {n: best_v.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
-            again.update({n: cur[n] for n in ("dv", "nb") if n in cur})
-            again = _fit(again, free, recs, cfg, dv).vals
-            if train_sse(again) < cur_sse - cfg.min_gain * noise_pow * n_train:
+            again = better_basin(best_v, cur, cur_sse)
+            if again is not None:
                 cur = again
                 refits += 1
                 carry = {c.effect: v for c, v, _ in cands if not c.replaces}
