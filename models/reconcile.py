@@ -467,7 +467,13 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
     def band(r: Prepared) -> np.ndarray:
-        return nb * r.sa * r.p_noise if nb > 0 and r.p_noise is not None else r.no_band
+        # the band of the pressure that acts: delayed with it by the dead time (a burst of noise
+        # the smoother lets through acts theta later; undelayed, the truth of unseen 113 #25
+        # sticks falsely in a slow slide: 15.5 times the noise, 1.16 delayed; ACCURACY.md sessions 19–20)
+        if not (nb > 0 and r.p_noise is not None):
+            return r.no_band
+        b = nb * r.sa * r.p_noise
+        return np.ascontiguousarray(actuator_pressure(b, r.dt, 0.0, valve.theta)) if valve.theta > 0 else b
 
     return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r),
                              substeps=cfg.substeps, fine=r.fine) for r in recs]

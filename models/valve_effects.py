@@ -527,7 +527,9 @@ def simulate_effects(
     ``S_a·p − k·x`` exceeds the sliding friction by more than ``b``, a stuck stem breaks away at
     ``F_s`` (it got stuck at least ``b`` inside its friction band), and the DV test of eq. (2)
     applies to a stem at rest only (see :func:`_karnopp_kernel`).  0 (the default) is
-    eq. (2) as above, bit for bit."""
+    eq. (2) as above, bit for bit.  Per sample, the band belongs to the force that acts then:
+    a band read off the recorded pressure is delayed with it by the dead time
+    (:func:`models.reconcile._residuals`)."""
     p = np.ascontiguousarray(p, dtype=float)
     if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
         raise ModelConfigError("p must be a non-empty 1-D array of finite pressures (Pa)")

@@ -5,6 +5,7 @@ tests/bench/accuracy_reconcile.py."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -28,7 +29,7 @@ from models.reconcile import (
     reconcile,
     smooth_pressure,
 )
-from models.valve_effects import EffectValve, actuator_pressure, hidden_record, simulate_effects
+from models.valve_effects import EffectValve, actuator_pressure, hidden_record, residual_effects, simulate_effects
 from models.valve_tests import Excitation, isa_steps, sine, square
 from service.cli import main
 from service.commands.reconcile import _named
@@ -502,3 +503,33 @@ def test_a_pair_whose_basin_no_local_start_reaches_is_found_by_the_global_search
     assert {"slip_jump", "dead_time"} <= set(r.effects)
     assert r.final.params["theta_s"] == pytest.approx(0.1317, rel=0.2)
     assert r.final.rmse < 1.3 * r.noise_floor
+
+
+def test_the_stick_band_travels_with_the_pressure_through_the_dead_time():
+    # the band (nb·S_a·σ of the noise left in the smoothed pressure) belongs to the pressure that
+    # acts: delayed by theta with it.  Expected: the kernel run with the band shifted by linear
+    # interpolation (as the pressure is, eq. 1 with p(t − θ)); a band burst after each step
+    # (where the smoother keeps short windows) makes the two rules differ
+    theta = 0.15
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"dead_time": (theta,)}, seed=2)
+    r = prepare(ValveData(rec.t, rec.p, rec.x, "short"))
+    cfg = ReconcileConfig()
+    dv = 0.01 * r.speed_max
+    v = rec.valve
+    vals = dict(k=v.k, fc=v.fc, fv=v.fv, bias=v.bias, theta=theta, nb=cfg.stick_band, dv=dv)
+    idx = np.arange(r.x.size)
+    burst = np.zeros(r.x.size)
+    for j in np.flatnonzero(np.abs(np.diff(r.p_smooth)) > 1e3):
+        burst[j : j + 200] = 1e3  # Pa: a band near F_c for 0.2 s after each edge
+    r = replace(r, p_noise=r.p_noise + burst)
+    band = cfg.stick_band * r.sa * r.p_noise
+    delayed = np.interp(idx - theta / r.dt, idx, band)
+    valve = EffectValve(k=v.k, fc=v.fc, fv=v.fv, bias=v.bias, m=cfg.m, sa=cfg.sa, dv=dv, theta=theta)
+
+    def run(b):
+        return residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=b,
+                                substeps=cfg.substeps, fine=r.fine)
+
+    got = _residuals(vals, [r], cfg, dv)[0]
+    assert np.max(np.abs(run(band) - run(delayed))) > 5 * r.sigma_x  # the rules differ on this record
+    assert np.allclose(got, run(delayed), rtol=0, atol=1e-9)
