@@ -486,22 +486,23 @@ def test_the_global_search_finds_a_hidden_deadband_from_the_record_alone():
 
 @pytest.mark.slow
 def test_a_pair_whose_basin_no_local_start_reaches_is_found_by_the_global_search():
-    # unseen draw 113, record 25 of the accuracy bench: a slip jump of 1.31 and a 0.13 s dead time
+    # unseen draw 97, record 25 of the accuracy bench: a slip jump of 1.57 and a 0.11 s dead time
     # on random steps behind a 1 s V/P lag (planted truth).  The local search names the slip jump
-    # and stops at 9 times the noise; the global search (ReconcileConfig.global_search) finds the
-    # dead time beside it (opt-in: `loopwatch reconcile --global-search`)
-    from dataclasses import replace
-
+    # and a lag in the dead time's place and stops at 1.7 times the noise; the global search
+    # (ReconcileConfig.global_search) finds the dead time beside the slip jump (opt-in:
+    # `loopwatch reconcile --global-search`).  Until session 20 this was 113 #25, which the local
+    # search now finds with the stick band delayed by the dead time
     from tests.bench.accuracy_reconcile import make_record, select
 
-    (_, case), = select("113:24")
-    assert case["hidden"] == {"slip_jump": (pytest.approx(1.3106, rel=1e-3),), "dead_time": (pytest.approx(0.1317, rel=1e-3),)}
+    (_, case), = select("97:24")
+    assert case["hidden"] == {"slip_jump": (pytest.approx(1.5653, rel=1e-3),), "dead_time": (pytest.approx(0.1114, rel=1e-3),)}
     t, p, x, sa = make_record(case)
     data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=sa)
     assert "dead_time" not in reconcile(data, config=cfg).effects
     r = reconcile(data, config=replace(cfg, global_search=True))
     assert {"slip_jump", "dead_time"} <= set(r.effects)
-    assert r.final.params["theta_s"] == pytest.approx(0.1317, rel=0.2)
+    assert r.final.params["theta_s"] == pytest.approx(0.1114, rel=0.2)
+    assert r.final.params["Fs"] / r.final.params["Fc"] == pytest.approx(1.5653, rel=0.1)
     assert r.final.rmse < 1.3 * r.noise_floor
 
 
