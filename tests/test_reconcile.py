@@ -152,8 +152,6 @@ def test_two_hidden_effects_that_no_single_effect_explains_are_found_together():
     # slip jump of 1.43 and a 1.38 mm deadband on a PRBS through a 1 s V/P lag.  Either effect
     # alone fits worse than the baseline out of sample, so no single effect passes; the two
     # together fit at the noise (planted truth)
-    from dataclasses import replace
-
     from tests.bench.accuracy_reconcile import indep_record, prbs
 
     valve = {"k": 336222.4283892678, "sa": 0.06, "m": 1.9563140749338328, "fc": 460.0860199355867,
