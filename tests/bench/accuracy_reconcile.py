@@ -50,6 +50,7 @@ WORKERS = int(os.environ.get("LOOPWATCH_BENCH_WORKERS", "2"))
 INDEP_SEEDS = [int(s) for s in os.environ.get("LOOPWATCH_RECONCILE_INDEP_SEEDS", "20261122,7").split(",")]
 # sub-steps per 1 ms sample of the independent simulator (see indep_record)
 INDEP_SUB = int(os.environ.get("LOOPWATCH_RECONCILE_INDEP_SUB", "32"))
+INDEP_SUB_MAX = 1024  # indep_record stops doubling its sub-steps at this many or more
 
 # ----------------------------------------------------------------------------- excitations
 
@@ -115,8 +116,8 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
                  sub: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Written apart from models/valve_effects.py: another integration scheme and stick rule.
 
-    ``sub`` sub-steps per sample (default :data:`INDEP_SUB`, 32).  The scheme is first order in
-    the sub-step: at 4 sub-steps (0.25 ms, the setting before session 5) the stem lags the
+    ``sub`` sub-steps per sample (default: the least that converges, below).  The scheme is first
+    order in the sub-step: at 4 sub-steps (0.25 ms, the setting before session 5) the stem lags the
     converged solution by about half a millisecond of motion after every raw-command edge (54 µm
     on the clean PRBS record 1815, noise 18 µm; 9.7 µm RMS over the record against 256
     sub-steps), a sub-sample dead time that the workflow rightly found and named.  At 32 the
@@ -125,15 +126,48 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
 
     Stribeck friction that falls faster with speed than viscous friction rises gives a slow
     slide negative damping, growth rate up to ``lam = (0.858·(F_s − F_c)/v_s − F_v)/m``; this
-    explicit scheme needs ``h·lam`` small there, so the default number of sub-steps is raised
-    to ``ceil(8·dt·lam)`` when that is larger (session 9: at 32 sub-steps, records with
-    ``dt·lam`` 8–28 departed 24–408 µm RMS from the same scheme at 256)."""
+    explicit scheme needs ``h·lam`` small there, so the first number of sub-steps tried is
+    ``ceil(8·dt·lam)`` when that is larger than :data:`INDEP_SUB` (session 9: at 32 sub-steps,
+    records with ``dt·lam`` 8–28 departed 24–408 µm RMS from the same scheme at 256).  That rule
+    alone left some Stribeck records 0.85–1.5 × the position noise from the converged stem
+    (session 20: 101 #26 at 32 sub-steps, 71 #4 at 92), so by default the record is simulated
+    again at twice the sub-steps, and the sub-steps are doubled until the two runs agree within
+    a tenth of the position noise ``noise_x`` (RMS; the error of the coarser run is then about a
+    fifth of the noise) or the sub-steps reach :data:`INDEP_SUB_MAX`; the coarser run of the last
+    pair is kept, so a record that converged at the first try is the same as before.  With
+    ``noise_x`` = 0 (or ``sub`` given) the first number alone is used."""
+    if sub is not None or noise_x <= 0:
+        p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
+    else:
+        p_rec, x_out = _indep_stem(valve, exc, hidden, None)
+        sub = _indep_sub(valve, exc, hidden)
+        while sub < INDEP_SUB_MAX:
+            p2, x2 = _indep_stem(valve, exc, hidden, 2 * sub)
+            if math.sqrt(float(np.mean((x2 - x_out) ** 2))) <= 0.1 * noise_x:
+                break
+            p_rec, x_out, sub = p2, x2, 2 * sub
+    n = x_out.size
+    rng = np.random.default_rng(seed)
+    return exc.t, p_rec + noise_p * rng.standard_normal(n), x_out - valve["bias"] + noise_x * rng.standard_normal(n)
+
+
+def _indep_sub(valve: dict, exc: Excitation, hidden: dict) -> int:
+    """The first number of sub-steps :func:`indep_record` tries (see there)."""
+    fc = valve["fc"]
+    fs = fc * hidden.get("slip_jump", hidden.get("stribeck", (1.0,)))[0]
+    vs = hidden["stribeck"][1] if "stribeck" in hidden else 0.0
+    lam = (0.858 * (fs - fc) / vs - valve["fv"]) / valve["m"] if vs > 0 else 0.0
+    return max(INDEP_SUB, math.ceil(8.0 * exc.dt * lam))
+
+
+def _indep_stem(valve: dict, exc: Excitation, hidden: dict, sub: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """The independent simulator's recorded pressure (V/P output) and transmitter reading
+    (spring coordinate), noise-free, at ``sub`` sub-steps per sample (None: :func:`_indep_sub`)."""
     k, sa, m, fc, fv = valve["k"], valve["sa"], valve["m"], valve["fc"], valve["fv"]
     fs = fc * hidden.get("slip_jump", hidden.get("stribeck", (1.0,)))[0]
     vs = hidden["stribeck"][1] if "stribeck" in hidden else 0.0
     if sub is None:
-        lam = (0.858 * (fs - fc) / vs - fv) / m if vs > 0 else 0.0
-        sub = max(INDEP_SUB, math.ceil(8.0 * exc.dt * lam))
+        sub = _indep_sub(valve, exc, hidden)
     h = exc.dt / sub
     tau = hidden.get("actuator_lag", (0.0,))[0]
     delay = int(round(hidden.get("dead_time", (0.0,))[0] / h))
@@ -180,8 +214,7 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
                 y = x + half
         p_rec[i] = pv
         x_out[i] = y
-    rng = np.random.default_rng(seed)
-    return exc.t, p_rec + noise_p * rng.standard_normal(n), x_out - valve["bias"] + noise_x * rng.standard_normal(n)
+    return p_rec, x_out
 
 
 # ----------------------------------------------------------------------------- cases
