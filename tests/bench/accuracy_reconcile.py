@@ -139,8 +139,8 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
     if sub is not None or noise_x <= 0:
         p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
     else:
-        p_rec, x_out = _indep_stem(valve, exc, hidden, None)
         sub = _indep_sub(valve, exc, hidden)
+        p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
         while sub < INDEP_SUB_MAX:
             p2, x2 = _indep_stem(valve, exc, hidden, 2 * sub)
             if math.sqrt(float(np.mean((x2 - x_out) ** 2))) <= 0.1 * noise_x:
@@ -331,9 +331,9 @@ def visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> dict[
     the RMSE on the training blocks of the truth with that effect taken out (the Karnopp
     parameters and the other effect refitted locally, from the truth), over the noise.  It does
     not depend on the workflow's run, unlike the reported baseline that "clearly above the noise"
-    reads (session 20).  A local refit bounds the
-    best such model from above, so a ratio near 1 proves the effect invisible on that record (no
-    method can name it); a large ratio does not prove it visible.  The truth's parameters map
+    reads (session 20).  A local refit bounds the best such model from above, so a ratio near 1
+    proves the effect invisible on that record (no method can name it); a large ratio does not
+    prove it visible.  The truth's parameters map
     one-to-one onto the workflow's (independent simulator only), so this uses its private fit."""
     from models import reconcile as rc
 
