@@ -472,8 +472,7 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
         # sticks falsely in a slow slide: 15.5 times the noise, 1.16 delayed; ACCURACY.md sessions 19–20)
         if not (nb > 0 and r.p_noise is not None):
             return r.no_band
-        b = nb * r.sa * r.p_noise
-        return np.ascontiguousarray(actuator_pressure(b, r.dt, 0.0, valve.theta)) if valve.theta > 0 else b
+        return actuator_pressure(nb * r.sa * r.p_noise, r.dt, theta=valve.theta)  # the band itself at theta = 0
 
     return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r),
                              substeps=cfg.substeps, fine=r.fine) for r in recs]

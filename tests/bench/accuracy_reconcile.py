@@ -402,7 +402,10 @@ def report(name: str, results: list[dict]) -> None:
     def clear(r):  # the hidden effect is clearly above the noise: the baseline misses by more than the noise
         return r["base"] >= 2.0 * r["noise"]
 
-    seen = [r for r in singles if r.get("visible") and min(r["visible"].values()) >= 2.0]
+    def shown(r):  # each hidden effect clearly visible (see visibility): independent records only
+        return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
+
+    seen = [r for r in singles if shown(r)]
     for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", [r for r in singles if clear(r)]),
                        ("clearly visible (the truth without it, refitted from the truth, misses the training blocks "
                         "by ≥ 2 × noise; independent records)", seen)):
@@ -413,7 +416,7 @@ def report(name: str, results: list[dict]) -> None:
     if pairs:
         both = sum(1 for r in pairs if set(r["hidden"]) <= set(r["effects"]))
         print(f"pairs, both effects found: {both}/{len(pairs)} = {both / len(pairs):.0%}")
-        vis = [r for r in pairs if "visible" in r and min(r["visible"].values()) >= 2.0]
+        vis = [r for r in pairs if shown(r)]
         if vis:
             ok = sum(1 for r in vis if set(r["hidden"]) <= set(r["effects"]))
             print(f"pairs where each effect is clearly visible beside the other (the truth without it, refitted, "
