@@ -136,16 +136,14 @@ def indep_record(valve: dict, exc: Excitation, hidden: dict, noise_x: float, noi
     fifth of the noise) or the sub-steps reach :data:`INDEP_SUB_MAX`; the coarser run of the last
     pair is kept, so a record that converged at the first try is the same as before.  With
     ``noise_x`` = 0 (or ``sub`` given) the first number alone is used."""
-    if sub is not None or noise_x <= 0:
-        p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
-    else:
-        sub = _indep_sub(valve, exc, hidden)
-        p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
-        while sub < INDEP_SUB_MAX:
-            p2, x2 = _indep_stem(valve, exc, hidden, 2 * sub)
-            if math.sqrt(float(np.mean((x2 - x_out) ** 2))) <= 0.1 * noise_x:
-                break
-            p_rec, x_out, sub = p2, x2, 2 * sub
+    converge = sub is None and noise_x > 0
+    sub = _indep_sub(valve, exc, hidden) if sub is None else sub
+    p_rec, x_out = _indep_stem(valve, exc, hidden, sub)
+    while converge and sub < INDEP_SUB_MAX:
+        p2, x2 = _indep_stem(valve, exc, hidden, 2 * sub)
+        if math.sqrt(float(np.mean((x2 - x_out) ** 2))) <= 0.1 * noise_x:
+            break
+        p_rec, x_out, sub = p2, x2, 2 * sub
     n = x_out.size
     rng = np.random.default_rng(seed)
     return exc.t, p_rec + noise_p * rng.standard_normal(n), x_out - valve["bias"] + noise_x * rng.standard_normal(n)
@@ -160,14 +158,12 @@ def _indep_sub(valve: dict, exc: Excitation, hidden: dict) -> int:
     return max(INDEP_SUB, math.ceil(8.0 * exc.dt * lam))
 
 
-def _indep_stem(valve: dict, exc: Excitation, hidden: dict, sub: int | None) -> tuple[np.ndarray, np.ndarray]:
+def _indep_stem(valve: dict, exc: Excitation, hidden: dict, sub: int) -> tuple[np.ndarray, np.ndarray]:
     """The independent simulator's recorded pressure (V/P output) and transmitter reading
-    (spring coordinate), noise-free, at ``sub`` sub-steps per sample (None: :func:`_indep_sub`)."""
+    (spring coordinate), noise-free, at ``sub`` sub-steps per sample."""
     k, sa, m, fc, fv = valve["k"], valve["sa"], valve["m"], valve["fc"], valve["fv"]
     fs = fc * hidden.get("slip_jump", hidden.get("stribeck", (1.0,)))[0]
     vs = hidden["stribeck"][1] if "stribeck" in hidden else 0.0
-    if sub is None:
-        sub = _indep_sub(valve, exc, hidden)
     h = exc.dt / sub
     tau = hidden.get("actuator_lag", (0.0,))[0]
     delay = int(round(hidden.get("dead_time", (0.0,))[0] / h))
@@ -405,10 +401,9 @@ def report(name: str, results: list[dict]) -> None:
     def shown(r):  # each hidden effect clearly visible (see visibility): independent records only
         return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
 
-    seen = [r for r in singles if shown(r)]
     for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", [r for r in singles if clear(r)]),
                        ("clearly visible (the truth without it, refitted from the truth, misses the training blocks "
-                        "by ≥ 2 × noise; independent records)", seen)):
+                        "by ≥ 2 × noise; independent records)", [r for r in singles if shown(r)])):
         ok = sum(1 for r in sel if r["effects"][:1] == list(r["hidden"]))
         print(f"single effect named first, {label}: {ok}/{len(sel)} = {ok / max(len(sel), 1):.0%}")
     ok = sum(1 for r in clean if not r["effects"])
