@@ -54,9 +54,22 @@ def test_smoothing_keeps_steps_and_removes_noise():
 def test_clean_record_names_no_effect():
     r = _run({}, seed=1)
     assert r.effects == []
+    assert "no missing effect found" in r.message and "still misses" not in r.message
     assert r.final.rmse < 1.2 * r.noise_floor
     assert r.noise_floor == pytest.approx(1e-5, rel=0.1)
     assert set(r.regime_share) <= set(REGIMES) and sum(r.regime_share.values()) == pytest.approx(1.0)
+
+
+def test_a_misfit_no_candidate_explains_is_not_reported_as_nothing_missing():
+    # planted truth: a dead time of 50 ms after command steps, which a deadband cannot produce (it
+    # delays nothing on the first step, nor a step in the direction of the last); with the deadband
+    # as the only candidate nothing is named, and the result must say that the model still misses
+    # the data rather than "no missing effect found"
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"dead_time": (0.05,)}, seed=3)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "short"), config=ReconcileConfig(candidates=("deadband",)))
+    assert r.effects == [] and r.baseline.rmse > 4 * r.noise_floor
+    assert "no missing effect found" not in r.message
+    assert "no candidate effect passes the held-out test; the model still misses the data" in r.message
 
 
 @pytest.mark.slow
