@@ -99,6 +99,24 @@ def test_hidden_dead_time_is_named_and_the_gap_shrinks():
     assert r.final.rmse <= 0.5 * r.baseline.rmse
 
 
+def test_split_check_runs_the_search_on_other_draws_of_the_held_out_blocks():
+    # the draws differ only in which blocks are held out, about half of them each time
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"dead_time": (0.08,)}, seed=3)
+    data = ValveData(rec.t, rec.p, rec.x, "short")
+    a, b = prepare(data, 0.5, split_seed=8), prepare(data, 0.5, split_seed=1)
+    assert np.array_equal(a.block, b.block) and not np.array_equal(a.train, b.train)
+    assert 0.4 < b.train.mean() < 0.6
+    # planted truth: a dead time of 80 ms after raw command steps, 30 times the noise: every draw
+    # names it; the result is the first draw's (the default run's) with the counts added
+    r = reconcile(data, config=ReconcileConfig(split_check=3))
+    one = reconcile(data)
+    assert r.effects == one.effects and r.effects[:1] == ["dead_time"]
+    assert r.split_draws == 3 and r.split_named["dead_time"] == 3
+    assert set(r.effects) <= set(r.split_named) and all(1 <= k <= 3 for k in r.split_named.values())
+    assert "dead_time 3/3" in r.message and r.as_dict()["split_check"] == {"draws": 3, "named": r.split_named}
+    assert one.split_draws == 1 and one.split_named == {} and "draws of the held-out" not in one.message
+
+
 @pytest.mark.parametrize("exc, hidden, seed, alike", [
     # raw ISA steps: a lag rounds every edge that a dead time only shifts, the record tells them apart
     (SHORT, 0.03, 7, False),
@@ -128,8 +146,9 @@ def test_cli_reconcile_json_and_report(tmp_path, capsys):
     assert main(["simulate", "valve", "--test", "isa-steps", "--preset", "low", "--vp-lag", "0",
                  "--hide", "actuator_lag=0.05", "--seed", "5", "--out", str(data)]) == 0
     js, rep = tmp_path / "out.json", tmp_path / "out.html"
-    assert main(["reconcile", str(data), "--json", str(js), "--report", str(rep)]) == 0
+    assert main(["reconcile", str(data), "--json", str(js), "--report", str(rep), "--split-check", "2"]) == 0
     doc = json.loads(js.read_text())
+    assert doc["split_check"]["draws"] == 2 and doc["split_check"]["named"]["actuator_lag"] >= 1
     for key in ("baseline", "steps", "effects", "final_rmse_m", "noise_floor_m"):
         assert key in doc
     assert doc["effects"][:1] == ["actuator_lag"]
@@ -204,6 +223,10 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "--threads 0" in capsys.readouterr().err
     assert main(["reconcile", str(tmp_path / "missing.csv"), "--stick-band", "-1"]) == 2
     assert "--stick-band -1" in capsys.readouterr().err
+    assert main(["reconcile", str(tmp_path / "missing.csv"), "--split-check", "0"]) == 2
+    assert "--split-check 0" in capsys.readouterr().err
+    with pytest.raises(ModelConfigError, match="split_check = 0"):
+        ReconcileConfig(split_check=0)
 
 
 def test_dead_time_shift_matches_linear_interpolation():

@@ -43,6 +43,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="when the local search stops above the noise, fit every candidate added to the accepted "
                         "effects by a global search (differential evolution) too: finds some pairs the local "
                         "search misses, and can take several times longer (ReconcileConfig.global_search)")
+    p.add_argument("--split-check", type=int, default=1, metavar="N",
+                   help="run the search on N draws of the training / held-out blocks and report how many name "
+                        "each effect (the result is the first draw's; N times the cost; default 1)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", type=Path, default=None, metavar="OUT.html",
                    help="write a self-contained HTML report with plots")
@@ -154,12 +157,14 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"{flag} {v}: must be a finite number > 0")
     if args.threads < 1:
         raise UsageError(f"--threads {args.threads}: at least one fitting worker is needed")
+    if args.split_check < 1:
+        raise UsageError(f"--split-check {args.split_check}: at least one draw of the held-out blocks is needed")
     if not (math.isfinite(args.stick_band) and args.stick_band >= 0):
         raise UsageError(f"--stick-band {args.stick_band}: must be a finite number >= 0 (noise standard deviations)")
     data = read_valve_csv(args.data)
     sig = read_valve_csv(args.signature) if args.signature is not None else None
     cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band,
-                          global_search=args.global_search)
+                          global_search=args.global_search, split_check=args.split_check)
     r = reconcile(data, sig, cfg)
     lines = _lines(r)
     print("\n".join(lines))
