@@ -194,8 +194,9 @@ class ReconcileConfig:
         the cost.  The choice between effects that act alike turns on a few events, and which
         blocks hold them decides it: on 16 unseen pairs with both effects visible, four draws
         found both in 10, 8, 7 and 7 (ACCURACY.md, issue 8, session 21).  An effect named under
-        every draw is a firmer finding: on those runs, of the effects the first draw named, 90 of
-        92 named under every draw had been hidden, against 13 of 20 named under only some
+        every draw is a firmer finding: of the effects the first draw named, 90 of 92 named
+        under every draw had been hidden on those runs, against 13 of 20 named under only some;
+        with three draws on two fresh unseen draws of the bench, 31 of 34 against 3 of 9
         (ACCURACY.md, issue 8, session 22).
     """
 
