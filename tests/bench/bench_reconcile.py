@@ -80,3 +80,21 @@ def test_reconcile_60s_record_under_60s():
     print(f"simulate 60 000 steps: compiled {np.median(ts) * 1e3:.1f} ms, pure Python (issue 7) "
           f"{np.median(tp) * 1e3:.0f} ms ({np.median(tp) / np.median(ts):.0f}x)")
     assert worst < 60.0
+
+
+@pytest.mark.bench
+def test_split_check_cost():
+    """``--split-check 3`` against the default single draw on the same 60 s record, same run: the
+    check runs the whole search once per draw, so about three times the wall time is expected."""
+    rec = hidden_record(PRESETS["low"], square(periods=60.0 / 10.4), {"actuator_lag": (0.2,)}, seed=7)
+    data = ValveData(rec.t, rec.p, rec.x, "bench")
+    print()
+    print(f"machine: {machine_note()}")
+    walls = {}
+    for n in (1, 3):
+        t0 = time.perf_counter()
+        r = reconcile(data, config=ReconcileConfig(split_check=n))
+        walls[n] = time.perf_counter() - t0
+        print(f"split_check {n}: {walls[n]:.1f} s wall, effects {r.effects}, named {r.split_named or '-'}")
+    print(f"ratio 3 draws / 1 draw: {walls[3] / walls[1]:.2f}")
+    assert r.split_draws == 3
