@@ -196,7 +196,7 @@ class ReconcileConfig:
         found both in 10, 8, 7 and 7 (ACCURACY.md, issue 8, session 21).  An effect named under
         every draw is a firmer finding: of the effects the first draw named, 90 of 92 named
         under every draw had been hidden on those runs, against 13 of 20 named under only some;
-        with three draws on two fresh unseen draws of the bench, 31 of 34 against 3 of 9
+        with three draws on four fresh unseen draws of the bench, 67 of 70 against 8 of 23
         (ACCURACY.md, issue 8, session 22).
     """
 
