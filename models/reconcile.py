@@ -1372,6 +1372,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     rounds: list[tuple[Candidate, ...]] = []
     accepted: list[str] = []
     message = ""
+    misses = False  # the search stopped with the model at twice the noise or more (see the round)
     refits = 0
     rescues = 0  # global searches made (at most two: one more after an effect it found, or after a refit)
     searched_sets: dict[tuple[str, ...], tuple[dict[str, float], float]] = {}  # _global_fit's results by effect set
@@ -1591,21 +1592,21 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         sc_cur = _score(res_all_cur, recs)
         cur_sse = train_sse(cur, res_all_cur)
         excess = (sc_cur.mse_h - noise_pow) / noise_pow
+        heldout = f"held-out RMSE {math.sqrt(sc_cur.mse_h) * 1e6:.2f} µm vs. noise {sigma * 1e6:.2f} µm"
         if excess < cfg.min_gain:
-            message = (f"model within the noise: held-out RMSE {math.sqrt(sc_cur.mse_h) * 1e6:.2f} µm vs. noise "
-                       f"{sigma * 1e6:.2f} µm (excess power {excess:.1%} < {cfg.min_gain:.0%})")
+            message = f"model within the noise: {heldout} (excess power {excess:.1%} < {cfg.min_gain:.0%})"
             break
         # said when the search stops: the model's held-out error against the noise; at twice the
         # noise or more (what ACCURACY.md calls clearly above the noise) nothing named is not
         # "nothing missing" (unseen 79 #25, Stribeck + lag on ramps: 18 times the noise left)
         ratio = math.sqrt(sc_cur.mse_h) / sigma
-        misfit = f"; held-out RMSE {math.sqrt(sc_cur.mse_h) * 1e6:.2f} µm vs. noise {sigma * 1e6:.2f} µm"
+        misfit = f"; {heldout}"
         if ratio >= 2.0:
             misfit = (f"; the model still misses the data{misfit} ({ratio:.1f} × the noise): an effect that none of the "
                       "candidates describes, or a fit the search did not reach")
         todo = [c for c in cfg.candidates if c not in accepted and _EXCLUSIVE.get(c) not in accepted]
         if not todo:
-            message = f"no candidate effect left to try{misfit}"
+            message, misses = f"no candidate effect left to try{misfit}", ratio >= 2.0
             break
         res_cur = np.concatenate([e[~r.train] for e, r in zip(res_all_cur, recs)])
         n_eff = max(2.0, sc_cur.n_h / _tau_int(res_cur, int(10 * cfg.block_s / recs[0].dt)))
@@ -1745,6 +1746,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             message = (("no further effect passes the held-out test" if accepted else
                         "no candidate effect passes the held-out test" if ratio >= 2.0 else "no missing effect found")
                        + misfit)
+            misses = ratio >= 2.0
             break
         best_c, best_v, best_free = max(passing, key=lambda cv: cv[0].delta_bic)
         slip = next((cvf for cvf in passing if cvf[0].effect == "slip_jump"), None)
@@ -1859,7 +1861,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         again = full_step("baseline", {**{n: cur[n] for n in _BASE}, **base_rule}, _BASE, baseline.evidence, start=True)
         if again.rmse < baseline.rmse:
             baseline = again
-    if not accepted and "no missing" not in message and "still misses" not in message:
+    if not accepted and "no missing" not in message and not misses:
         message = "no missing effect found: " + message
     if len(_stop_directions(recs)) == 1:
         message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
