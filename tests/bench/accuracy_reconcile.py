@@ -406,6 +406,11 @@ def report(name: str, results: list[dict]) -> None:
                         "by ≥ 2 × noise; independent records)", [r for r in singles if shown(r)])):
         ok = sum(1 for r in sel if r["effects"][:1] == list(r["hidden"]))
         print(f"single effect named first, {label}: {ok}/{len(sel)} = {ok / max(len(sel), 1):.0%}")
+    # by hidden effect: on the unseen draws the above-noise shortfall was Stribeck's alone (ACCURACY.md, session 23)
+    above = [r for r in singles if clear(r)]
+    print("  clearly above noise, by hidden effect: " + ", ".join(
+        f"{e} {sum(1 for r in above if list(r['hidden']) == [e] and r['effects'][:1] == [e])}/"
+        f"{sum(1 for r in above if list(r['hidden']) == [e])}" for e in EFFECTS if any(list(r["hidden"]) == [e] for r in above)))
     ok = sum(1 for r in clean if not r["effects"])
     print(f"clean records, none named: {ok}/{len(clean)} = {ok / max(len(clean), 1):.0%}")
     if pairs:
