@@ -1309,8 +1309,11 @@ def reconcile(
 
 def _split_seed(i: int) -> int:
     """Seed of draw ``i`` of the training / held-out blocks: :data:`_SPLIT_SEED` for the first (the
-    result's), then 1, 2, 3, ... (the draws of session 21)."""
-    return _SPLIT_SEED if i == 0 else i
+    result's), then 1, 2, 3, ... (the draws of session 21), skipping :data:`_SPLIT_SEED` so that no
+    draw repeats the first."""
+    if i == 0:
+        return _SPLIT_SEED
+    return i if i < _SPLIT_SEED else i + 1
 
 
 def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, pool: _FitPool,

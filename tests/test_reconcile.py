@@ -25,6 +25,7 @@ from models.reconcile import (
     _pool,
     _residuals,
     _score,
+    _split_seed,
     prepare,
     reconcile,
     smooth_pressure,
@@ -115,6 +116,13 @@ def test_split_check_runs_the_search_on_other_draws_of_the_held_out_blocks():
     assert set(r.effects) <= set(r.split_named) and all(1 <= k <= 3 for k in r.split_named.values())
     assert "dead_time 3/3" in r.message and r.as_dict()["split_check"] == {"draws": 3, "named": r.split_named}
     assert one.split_draws == 1 and one.split_named == {} and "draws of the held-out" not in one.message
+
+
+def test_split_check_draws_never_repeat_the_results_draw():
+    # the held-out blocks of any number of draws are all different draws (a repeat of the result's
+    # seed would count the same split twice and inflate "named under every draw")
+    seeds = [_split_seed(i) for i in range(20)]
+    assert seeds[0] == 8 and len(set(seeds)) == 20 and seeds[1:4] == [1, 2, 3]
 
 
 @pytest.mark.parametrize("exc, hidden, seed, alike", [
