@@ -401,16 +401,16 @@ def report(name: str, results: list[dict]) -> None:
     def shown(r):  # each hidden effect clearly visible (see visibility): independent records only
         return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
 
-    for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", [r for r in singles if clear(r)]),
+    above = [r for r in singles if clear(r)]
+    for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", above),
                        ("clearly visible (the truth without it, refitted from the truth, misses the training blocks "
                         "by ≥ 2 × noise; independent records)", [r for r in singles if shown(r)])):
         ok = sum(1 for r in sel if r["effects"][:1] == list(r["hidden"]))
         print(f"single effect named first, {label}: {ok}/{len(sel)} = {ok / max(len(sel), 1):.0%}")
     # by hidden effect: on the unseen draws the above-noise shortfall was Stribeck's alone (ACCURACY.md, session 23)
-    above = [r for r in singles if clear(r)]
+    by_effect = {e: [r for r in above if list(r["hidden"]) == [e]] for e in EFFECTS}
     print("  clearly above noise, by hidden effect: " + ", ".join(
-        f"{e} {sum(1 for r in above if list(r['hidden']) == [e] and r['effects'][:1] == [e])}/"
-        f"{sum(1 for r in above if list(r['hidden']) == [e])}" for e in EFFECTS if any(list(r["hidden"]) == [e] for r in above)))
+        f"{e} {sum(1 for r in rs if r['effects'][:1] == [e])}/{len(rs)}" for e, rs in by_effect.items() if rs))
     ok = sum(1 for r in clean if not r["effects"])
     print(f"clean records, none named: {ok}/{len(clean)} = {ok / max(len(clean), 1):.0%}")
     if pairs:
