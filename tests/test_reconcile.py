@@ -26,6 +26,7 @@ from models.reconcile import (
     _residuals,
     _score,
     _split_seed,
+    _stribeck_search,
     prepare,
     reconcile,
     smooth_pressure,
@@ -576,3 +577,40 @@ def test_the_stick_band_travels_with_the_pressure_through_the_dead_time():
     got = _residuals(vals, [r], cfg, dv)[0]
     assert np.max(np.abs(run(band) - run(delayed))) > 5 * r.sigma_x  # the rules differ on this record
     assert np.allclose(got, run(delayed), rtol=0, atol=1e-9)
+
+
+def test_stribeck_search_about_a_slip_jump_fit_reaches_the_planted_curve():
+    """The trap of a Stribeck valve on ramps: a slip jump's fit puts F_c high and F_v near 0, and
+    from there the local fit of the Stribeck model stays in that basin.  The search about the
+    slip jump's fit (:func:`_stribeck_search`) reaches the planted curve.  Planted truth as in the
+    balance test above (F_s/F_c 1.5, v_s 7 mm/s, F_v 15 kN·s/m), 30 s of ramps, 32 sub-steps."""
+    dt = 1e-3
+    rng = np.random.default_rng(5)
+    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 15))]
+    t = dt * np.arange(int(30.0 / dt))
+    p = pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size)))
+    valve = EffectValve(k=1.5e5, fc=630.0, fs=945.0, vs=7e-3, fv=1.5e4, m=2.8, sa=0.06, bias=2e-3, dv=1e-6)
+    x = simulate_effects(valve, actuator_pressure(p, dt, 0.05, 0.0), dt, substeps=32).x_meas
+    noise = np.random.default_rng(6)
+    rec = prepare(ValveData(t, p + 100.0 * noise.standard_normal(t.size), x + 10e-6 * noise.standard_normal(t.size),
+                            "ramps"), 0.5, valve.sa)
+    cfg = ReconcileConfig(sa=valve.sa, m=valve.m)
+    dv = 0.01 * rec.speed_max
+    # the V/P lag of the record is known here (held by the search, as an accepted effect's parameters are)
+    truth = dict(k=valve.k, fc=valve.fc, dfs=valve.fs - valve.fc, vs=valve.vs, fv=valve.fv, bias=valve.bias, tau=0.05,
+                 nb=3.0, dv=dv)
+
+    def train_rms(v):
+        return float(np.sqrt(np.mean(_residuals(v, [rec], cfg, dv)[0][rec.train] ** 2)))
+
+    # a slip jump's fit of such a record: F_s about right, F_c 24 % high, no viscous friction
+    slip = dict(truth, fc=1.24 * valve.fc, dfs=valve.fs - 1.24 * valve.fc, fv=0.0)
+    slip.pop("vs")
+    names = ("k", "fc", "fv", "bias", "dfs", "vs")
+    local = _fit({**slip, "vs": rec.speed_typ}, names, [rec], cfg, dv)
+    found, _ = _stribeck_search(slip, [rec], cfg, dv, {"nb": 3.0, "dv": dv})
+    found = _fit(found, names, [rec], cfg, dv).vals
+    assert train_rms(local.vals) > 2.0 * train_rms(truth)  # the trap: the local fit stays in the slip jump's basin
+    assert train_rms(found) < 1.3 * train_rms(truth)
+    assert found["fc"] == pytest.approx(valve.fc, rel=0.15)
+    assert found["fc"] + found["dfs"] == pytest.approx(valve.fs, rel=0.1)
