@@ -188,6 +188,15 @@ class ReconcileConfig:
         samples (:func:`_decimate`): 3–4 times cheaper; its result is fitted again at the full rate.
     global_polish : the global fits (lowest coarse cost first) fitted again at the full rate and
         judged.
+    stribeck_search : where a slip jump passes a step, the Stribeck model that nests it (a slip jump
+        is the Stribeck curve with ``v_s → 0``) is also fitted by a global search about the slip
+        jump's fit (:func:`_stribeck_search`, both stick rules, both folds of the cross-fit), and
+        that fit replaces the Stribeck candidate's local fit where it fits the fold better.  On by
+        default since session 24: on the 35 above-noise unseen Stribeck singles 22 → 25 named
+        first and no slip jump single lost, at about 1.5 times the time of those records
+        (ACCURACY.md and BENCHMARKS.md, issue 8, session 24).
+    stribeck_maxiter : generations of that search (it stops earlier once the fold fits within
+        1.1 times the noise).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
@@ -1430,6 +1439,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     refits = 0
     rescues = 0  # global searches made (at most two: one more after an effect it found, or after a refit)
     searched_sets: dict[tuple[str, ...], tuple[dict[str, float], float]] = {}  # _global_fit's results by effect set
+    searched_stribeck: dict[tuple, list[_Fit]] = {}  # stribeck_fit's searches by fold, free parameters and slip jump fit
     carry: dict[str, dict[str, float]] = {}  # candidates' fits kept as starts across a refit
     friction_rule: dict[str, dict[str, float]] = {}  # each candidate's stick rule, once chosen (plain_fit)
     n_train = sum(int(r.train.sum()) for r in recs)
@@ -1607,7 +1617,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         result fitted again at the full rate), both fitted on ``fold``."""
         names = free + _effect_names("stribeck")
         rules = _stick_rules(cfg, v_sj.get("dv", dv)) if cfg.stick_band > 0 else [{"dv": v_sj.get("dv", dv)}]
-        fits = [_fit(_stribeck_search(v_sj, recs, cfg, dv, rule, fold)[0], names, recs, cfg, dv, use=fold) for rule in rules]
+        key = (fold, names, tuple(sorted(v_sj.items())))  # a step taken again often has the same slip jump fit
+        if key not in searched_stribeck:
+            searched_stribeck[key] = [_fit(_stribeck_search(v_sj, recs, cfg, dv, rule, fold)[0], names, recs, cfg, dv,
+                                           use=fold) for rule in rules]
+        fits = searched_stribeck[key]
         return min(fits + [_Fit(v_st, fold_sse(v_st, fold))], key=lambda f: fold_sse(f.vals, fold))
 
     def n_params(eff: str, replaces: str, with_: str) -> int:
