@@ -228,7 +228,7 @@ class ReconcileConfig:
     global_coarse: int = 4
     global_polish: int = 2
     stribeck_search: bool = True
-    stribeck_maxiter: int = 100
+    stribeck_maxiter: int = 50
     split_check: int = 1
 
     def __post_init__(self) -> None:
