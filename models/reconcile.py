@@ -1762,6 +1762,24 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
 
             cands[at["stribeck"]] = (assess("stribeck", "stribeck", fit.vals, "", "", p_st, t_crit, refit_stribeck),
                                      fit.vals, free + _effect_names("stribeck"))
+
+            def slip_from(v_st: dict[str, float], v_sj: dict[str, float], fold: str) -> dict[str, float]:
+                # the nested slip jump gets the same search: refitted from its basin with v_s taken out
+                f = _fit({n: x for n, x in v_st.items() if n != "vs"}, free + _effect_names("slip_jump"), recs, cfg, dv,
+                         use=fold)
+                return f.vals if fold_sse(f.vals, fold) < fold_sse(v_sj, fold) else v_sj
+
+            v_sj = slip_from(fit.vals, cands[at["slip_jump"]][1], "train")
+            if v_sj is not cands[at["slip_jump"]][1]:
+                p_sj = n_params("slip_jump", "", "")
+
+                def refit_slip(cur2, cur2_sse, p_sj=p_sj):
+                    v_sj2 = plain_fit("slip_jump", cur2, cur2_sse, "test", [], memo2)[0].vals
+                    v_st2 = plain_fit("stribeck", cur2, cur2_sse, "test", [], memo2)[0].vals
+                    return slip_from(stribeck_fit(v_sj2, v_st2, "test").vals, v_sj2, "test"), "", p_sj
+
+                cands[at["slip_jump"]] = (assess("slip_jump", "slip_jump", v_sj, "", "", p_sj, t_crit, refit_slip),
+                                          v_sj, free + _effect_names("slip_jump"))
         rounds.append(tuple(c for c, _, _ in cands))
         passing = [(c, v, f) for c, v, f in cands if c.passed]
         rivals = cands  # the candidates the winner is reported against
