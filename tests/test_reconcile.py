@@ -15,6 +15,7 @@ from models.identification import ValveData
 from models.karnopp import PRESETS, pct_to_pa
 from models.reconcile import (
     REGIMES,
+    Prepared,
     ReconcileConfig,
     _alternatives,
     _fit,
@@ -362,6 +363,22 @@ def test_force_balance_at_the_head_of_each_rest_recovers_spring_and_friction_on_
         pass
 
 
+def _steep_stribeck_ramps(duration: float, knots: int) -> tuple[EffectValve, Prepared]:
+    """A steep Stribeck valve (F_s/F_c 1.5, v_s 7 mm/s, F_v 15 kN·s/m, m 2.8 kg) on random ramps
+    through a 50 ms V/P lag (it smooths the ramps' corners), simulated with 32 sub-steps; noise
+    10 µm / 100 Pa.  Returns the valve and the prepared record."""
+    dt = 1e-3
+    rng = np.random.default_rng(5)
+    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, knots))]
+    t = dt * np.arange(int(duration / dt))
+    p = pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size)))
+    valve = EffectValve(k=1.5e5, fc=630.0, fs=945.0, vs=7e-3, fv=1.5e4, m=2.8, sa=0.06, bias=2e-3, dv=1e-6)
+    x = simulate_effects(valve, actuator_pressure(p, dt, 0.05, 0.0), dt, substeps=32).x_meas
+    noise = np.random.default_rng(6)
+    return valve, prepare(ValveData(t, p + 100.0 * noise.standard_normal(t.size),
+                                    x + 10e-6 * noise.standard_normal(t.size), "ramps"), 0.5, valve.sa)
+
+
 def test_sliding_balance_of_the_fast_slides_recovers_coulomb_and_viscous_friction_under_steep_stribeck():
     """With Stribeck friction falling steeply from F_s the balances at rest read about F_s, and
     a baseline with F_s = F_c puts the sliding friction at the record's speeds, F_c + F_v·v, into
@@ -369,16 +386,8 @@ def test_sliding_balance_of_the_fast_slides_recovers_coulomb_and_viscous_frictio
     F_c + F_v·v: least squares of both over them (``fast_slides=True``) give back F_c and F_v.
     Planted truth: a steep curve (F_s/F_c 1.5, v_s 7 mm/s, F_v 15 kN·s/m, m 2.8 kg) on ramps,
     simulated with 32 sub-steps."""
-    dt = 1e-3
-    rng = np.random.default_rng(5)
-    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 30))]
-    t = dt * np.arange(int(60.0 / dt))
-    p = pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size)))
-    valve = EffectValve(k=1.5e5, fc=630.0, fs=945.0, vs=7e-3, fv=1.5e4, m=2.8, sa=0.06, bias=2e-3, dv=1e-6)
-    x = simulate_effects(valve, actuator_pressure(p, dt, 0.05, 0.0), dt, substeps=32).x_meas  # a V/P lag smooths the ramps' corners
-    noise = np.random.default_rng(6)
-    recs = [prepare(ValveData(t, p + 100.0 * noise.standard_normal(t.size), x + 10e-6 * noise.standard_normal(t.size),
-                              "ramps"), 0.5, valve.sa)]
+    valve, rec = _steep_stribeck_ramps(60.0, 30)
+    recs = [rec]
     cfg = ReconcileConfig(sa=valve.sa)
     plain = _initial_baseline(recs, cfg, at="breakaway")
     assert plain["fv"] < 0.3 * valve.fv  # what the balance at rest leaves to F_v: the planted trap
@@ -584,16 +593,7 @@ def test_stribeck_search_about_a_slip_jump_fit_reaches_the_planted_curve():
     from there the local fit of the Stribeck model stays in that basin.  The search about the
     slip jump's fit (:func:`_stribeck_search`) reaches the planted curve.  Planted truth as in the
     balance test above (F_s/F_c 1.5, v_s 7 mm/s, F_v 15 kN·s/m), 30 s of ramps, 32 sub-steps."""
-    dt = 1e-3
-    rng = np.random.default_rng(5)
-    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 15))]
-    t = dt * np.arange(int(30.0 / dt))
-    p = pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size)))
-    valve = EffectValve(k=1.5e5, fc=630.0, fs=945.0, vs=7e-3, fv=1.5e4, m=2.8, sa=0.06, bias=2e-3, dv=1e-6)
-    x = simulate_effects(valve, actuator_pressure(p, dt, 0.05, 0.0), dt, substeps=32).x_meas
-    noise = np.random.default_rng(6)
-    rec = prepare(ValveData(t, p + 100.0 * noise.standard_normal(t.size), x + 10e-6 * noise.standard_normal(t.size),
-                            "ramps"), 0.5, valve.sa)
+    valve, rec = _steep_stribeck_ramps(30.0, 15)
     cfg = ReconcileConfig(sa=valve.sa, m=valve.m)
     dv = 0.01 * rec.speed_max
     # the V/P lag of the record is known here (held by the search, as an accepted effect's parameters are)
