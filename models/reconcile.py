@@ -191,10 +191,12 @@ class ReconcileConfig:
     stribeck_search : where a slip jump passes a step, the Stribeck model that nests it (a slip jump
         is the Stribeck curve with ``v_s → 0``) is also fitted by a global search about the slip
         jump's fit (:func:`_stribeck_search`, both stick rules, both folds of the cross-fit), and
-        that fit replaces the Stribeck candidate's local fit where it fits the fold better.  On by
-        default since session 24: on the 35 above-noise unseen Stribeck singles 22 → 25 named
-        first and no slip jump single lost, at about 1.5 times the time of those records
-        (ACCURACY.md and BENCHMARKS.md, issue 8, session 24).
+        that fit replaces the Stribeck candidate's local fit where it fits the fold better.  Branch
+        ``s24-strib``, not on main: on the 35 above-noise unseen Stribeck singles 22 → 25 named
+        first at 100 generations (no slip jump single lost; a 60 s record 55 s) and 22 → 27 at 50
+        (three slip jump singles named ``stribeck``; that record 40 s); ACCURACY.md and
+        BENCHMARKS.md, issue 8, session 24.  The nested slip jump refitted from the search's
+        basin (this commit's successor) is measured on four records only.
     stribeck_maxiter : generations of that search (it stops earlier once the fold fits within
         1.1 times the noise).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
