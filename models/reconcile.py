@@ -196,7 +196,7 @@ class ReconcileConfig:
         first at 100 generations (no slip jump single lost; a 60 s record 55 s) and 22 → 27 at 50
         (three slip jump singles named ``stribeck``; that record 40 s); ACCURACY.md and
         BENCHMARKS.md, issue 8, session 24.  The nested slip jump refitted from the search's
-        basin (this commit's successor) is measured on four records only.
+        basin (`5c3a8d5` on this branch) is measured on four records only.
     stribeck_maxiter : generations of that search (it stops earlier once the fold fits within
         1.1 times the noise).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
