@@ -464,6 +464,8 @@ _BASE = ("k", "fc", "fv", "bias")
 _SHORT_NFEV = 6  # evaluation budget of a short multi-start fit
 _SWAP_SCREEN = 4  # grid starts of a swap model fitted (the lowest errors at the start)
 _MAX_REFITS = 2  # times the current model may be refitted from a candidate's basin in one search
+_MAX_STRIBECK_SEARCHES = 2  # Stribeck searches about a slip jump's fit per fold of the cross-fit in one run (each with
+# both stick rules: at most 8 differential evolutions, about 20 s on a 60 s record; BENCHMARKS.md, issue 8, session 25)
 
 
 def _to_valve(vals: dict[str, float], cfg: ReconcileConfig, dv: float) -> EffectValve:
@@ -1613,13 +1615,22 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             memo[key] = fit
         return memo[key]
 
+    def stribeck_key(v_sj: dict[str, float], fold: str) -> tuple:  # a step taken again often has the same slip jump fit
+        return fold, free + _effect_names("stribeck"), tuple(sorted(v_sj.items()))
+
+    def stribeck_spent(v_sj: dict[str, float], fold: str) -> bool:  # a new search on fold is over the run's budget
+        return (stribeck_key(v_sj, fold) not in searched_stribeck
+                and sum(k[0] == fold for k in searched_stribeck) >= _MAX_STRIBECK_SEARCHES)
+
     def stribeck_fit(v_sj: dict[str, float], v_st: dict[str, float], fold: str) -> _Fit:
         """The better on ``fold`` of the Stribeck candidate's local fit ``v_st`` and a global search
         about the slip jump's fit ``v_sj`` (:func:`_stribeck_search`, with both stick rules, each
         result fitted again at the full rate), both fitted on ``fold``."""
         names = free + _effect_names("stribeck")
         rules = _stick_rules(cfg, v_sj.get("dv", dv)) if cfg.stick_band > 0 else [{"dv": v_sj.get("dv", dv)}]
-        key = (fold, names, tuple(sorted(v_sj.items())))  # a step taken again often has the same slip jump fit
+        key = stribeck_key(v_sj, fold)
+        if stribeck_spent(v_sj, fold):
+            return _Fit(v_st, fold_sse(v_st, fold))
         if key not in searched_stribeck:
             searched_stribeck[key] = [_fit(_stribeck_search(v_sj, recs, cfg, dv, rule, fold)[0], names, recs, cfg, dv,
                                            use=fold) for rule in rules]
@@ -1751,9 +1762,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                                  n_params(eff, replaces, with_), t_crit, refit_single), fit.vals, fit_free))
         at = {c.effect: i for i, (c, _, _) in enumerate(cands)}
         if (cfg.stribeck_search and "slip_jump" in at and "stribeck" in at and cands[at["slip_jump"]][0].passed
-                and not cands[at["slip_jump"]][0].replaces and not cands[at["stribeck"]][0].replaces):
+                and not cands[at["slip_jump"]][0].replaces and not cands[at["stribeck"]][0].replaces
+                and not stribeck_spent(cands[at["slip_jump"]][1], "train")):
             # a slip jump passes: the Stribeck candidate is also searched about the slip jump's fit
-            # (stribeck_fit); in both folds of the cross-fit, so that each fold's fit sees its own blocks only
+            # (stribeck_fit); in both folds of the cross-fit, so that each fold's fit sees its own blocks only.
+            # Two slip jump fits at most per fold (_MAX_STRIBECK_SEARCHES): the run's cost stays bounded
             fit = stribeck_fit(cands[at["slip_jump"]][1], cands[at["stribeck"]][1], "train")
             p_st = n_params("stribeck", "", "")
 
