@@ -255,6 +255,33 @@ def test_hidden_slip_jump_is_named_and_the_gap_shrinks():
     assert r.final.rmse <= 0.5 * r.baseline.rmse
 
 
+
+@pytest.mark.slow
+def test_the_stribeck_searches_of_a_run_stay_within_their_budget(monkeypatch):
+    """Where a slip jump passes, the Stribeck candidate is searched about its fit, each search
+    with both stick rules; at most ``_MAX_STRIBECK_SEARCHES`` slip jump fits per fold of the
+    cross-fit in one run, so the run's cost stays bounded.  With a budget of 0 no search runs."""
+    import models.reconcile as rc
+
+    rec = hidden_record(PRESETS["high"].replace(tau_p=0.0), sine(periods=1.2), {"slip_jump": (1.5,)}, seed=3)
+    data = ValveData(rec.t, rec.p, rec.x, "sine")
+    calls: list[str] = []
+    search = rc._stribeck_search
+
+    def counted(slip, recs, cfg, dv, rule, fold="train"):
+        calls.append(fold)
+        return search(slip, recs, cfg, dv, rule, fold)
+
+    monkeypatch.setattr(rc, "_stribeck_search", counted)
+    r = reconcile(data)
+    assert r.effects[:1] == ["slip_jump"]
+    assert 1 <= calls.count("train") <= 2 * rc._MAX_STRIBECK_SEARCHES
+    assert calls.count("test") <= 2 * rc._MAX_STRIBECK_SEARCHES
+    calls.clear()
+    monkeypatch.setattr(rc, "_MAX_STRIBECK_SEARCHES", 0)
+    reconcile(data)
+    assert calls == []
+
 def test_alternatives_are_every_effect_compatible_with_the_model():
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "slip_jump", "stribeck"}
     assert set(_alternatives("deadband", [], "dead_time")) == {"actuator_lag", "slip_jump", "stribeck"}
