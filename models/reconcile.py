@@ -191,12 +191,14 @@ class ReconcileConfig:
     stribeck_search : where a slip jump passes a step, the Stribeck model that nests it (a slip jump
         is the Stribeck curve with ``v_s → 0``) is also fitted by a global search about the slip
         jump's fit (:func:`_stribeck_search`, both stick rules, both folds of the cross-fit), and
-        that fit replaces the Stribeck candidate's local fit where it fits the fold better.  Branch
-        ``s24-strib``, not on main: on the 35 above-noise unseen Stribeck singles 22 → 25 named
-        first at 100 generations (no slip jump single lost; a 60 s record 55 s) and 22 → 27 at 50
-        (three slip jump singles named ``stribeck``; that record 40 s); ACCURACY.md and
-        BENCHMARKS.md, issue 8, session 24.  The nested slip jump refitted from the search's
-        basin (`5c3a8d5` on this branch) is measured on four records only.
+        that fit replaces the Stribeck candidate's local fit where it fits the fold better.  The
+        nested slip jump is then refitted from the search's basin with ``v_s`` taken out, and
+        replaces the slip jump candidate's fit where it fits the fold better (the simpler model
+        gets the same search).  At most two searches per fold in a run.  Measured against the
+        workflow without it (ACCURACY.md and BENCHMARKS.md, issue 8, sessions 24–25): unseen
+        above-noise Stribeck singles 22 → 27 of 35 named first, slip jump singles 45 → 44 of 46;
+        both effects found in 21 of 60 friction pairs against 22; the other lines unchanged; the
+        slowest 60 s record measured 27 → 43 s.
     stribeck_maxiter : generations of that search (it stops earlier once the fold fits within
         1.1 times the noise).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
