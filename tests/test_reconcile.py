@@ -255,7 +255,6 @@ def test_hidden_slip_jump_is_named_and_the_gap_shrinks():
     assert r.final.rmse <= 0.5 * r.baseline.rmse
 
 
-
 @pytest.mark.slow
 def test_the_stribeck_searches_of_a_run_stay_within_their_budget(monkeypatch):
     """Where a slip jump passes, the Stribeck candidate is searched about its fit, each search
@@ -281,6 +280,7 @@ def test_the_stribeck_searches_of_a_run_stay_within_their_budget(monkeypatch):
     monkeypatch.setattr(rc, "_MAX_STRIBECK_SEARCHES", 0)
     reconcile(data)
     assert calls == []
+
 
 def test_alternatives_are_every_effect_compatible_with_the_model():
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "slip_jump", "stribeck"}
