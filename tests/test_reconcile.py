@@ -570,13 +570,16 @@ def test_a_pair_whose_basin_no_local_start_reaches_is_found_by_the_global_search
     # and a lag in the dead time's place and stops at 1.7 times the noise; the global search
     # (ReconcileConfig.global_search) finds the dead time beside the slip jump (opt-in:
     # `loopwatch reconcile --global-search`).  Until session 20 this was 113 #25, which the local
-    # search now finds with the stick band delayed by the dead time
+    # search now finds with the stick band delayed by the dead time.  Checked without the Stribeck
+    # search: with it (the default since session 25) the slip jump is named Stribeck on this record,
+    # with or without the global search (the dead time is found either way; ACCURACY.md, issue 8,
+    # session 25)
     from tests.bench.accuracy_reconcile import make_record, select
 
     (_, case), = select("97:24")
     assert case["hidden"] == {"slip_jump": (pytest.approx(1.5653, rel=1e-3),), "dead_time": (pytest.approx(0.1114, rel=1e-3),)}
     t, p, x, sa = make_record(case)
-    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=sa)
+    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=sa, stribeck_search=False)
     assert "dead_time" not in reconcile(data, config=cfg).effects
     r = reconcile(data, config=replace(cfg, global_search=True))
     assert {"slip_jump", "dead_time"} <= set(r.effects)
