@@ -1620,9 +1620,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     def stribeck_key(v_sj: dict[str, float], fold: str) -> tuple:  # a step taken again often has the same slip jump fit
         return fold, free + _effect_names("stribeck"), tuple(sorted(v_sj.items()))
 
-    def stribeck_spent(v_sj: dict[str, float], fold: str) -> bool:  # a new search on fold is over the run's budget
-        return (stribeck_key(v_sj, fold) not in searched_stribeck
-                and sum(k[0] == fold for k in searched_stribeck) >= _MAX_STRIBECK_SEARCHES)
+    def stribeck_spent(key: tuple) -> bool:  # a new search on the key's fold is over the run's budget
+        return key not in searched_stribeck and sum(k[0] == key[0] for k in searched_stribeck) >= _MAX_STRIBECK_SEARCHES
 
     def stribeck_fit(v_sj: dict[str, float], v_st: dict[str, float], fold: str) -> _Fit:
         """The better on ``fold`` of the Stribeck candidate's local fit ``v_st`` and a global search
@@ -1631,7 +1630,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         names = free + _effect_names("stribeck")
         rules = _stick_rules(cfg, v_sj.get("dv", dv)) if cfg.stick_band > 0 else [{"dv": v_sj.get("dv", dv)}]
         key = stribeck_key(v_sj, fold)
-        if stribeck_spent(v_sj, fold):
+        if stribeck_spent(key):
             return _Fit(v_st, fold_sse(v_st, fold))
         if key not in searched_stribeck:
             searched_stribeck[key] = [_fit(_stribeck_search(v_sj, recs, cfg, dv, rule, fold)[0], names, recs, cfg, dv,
@@ -1765,7 +1764,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         at = {c.effect: i for i, (c, _, _) in enumerate(cands)}
         if (cfg.stribeck_search and "slip_jump" in at and "stribeck" in at and cands[at["slip_jump"]][0].passed
                 and not cands[at["slip_jump"]][0].replaces and not cands[at["stribeck"]][0].replaces
-                and not stribeck_spent(cands[at["slip_jump"]][1], "train")):
+                and not stribeck_spent(stribeck_key(cands[at["slip_jump"]][1], "train"))):
             # a slip jump passes: the Stribeck candidate is also searched about the slip jump's fit
             # (stribeck_fit); in both folds of the cross-fit, so that each fold's fit sees its own blocks only.
             # Two slip jump fits at most per fold (_MAX_STRIBECK_SEARCHES): the run's cost stays bounded

@@ -56,23 +56,19 @@ def test_reconcile_60s_record_under_60s():
         worst = max(worst, dt)
         print(f"{name}: {exc.t.size} samples, reconcile {dt:.1f} s wall, {cpu:.1f} s CPU, effects {r.effects}, "
               f"RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm (noise {r.noise_floor * 1e6:.1f})")
-    case = indep_cases(23)[11]  # printed, not asserted (see the module docstring)
-    t, p, x = indep_record(case["valve"], prbs(case["seed"], 60.0), case["hidden"], *case["noise"], case["seed"])
-    t0, c0 = time.perf_counter(), _cpu()
-    r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
-    dt, cpu = time.perf_counter() - t0, _cpu() - c0
-    print(f"unseen draw 23 record 12 at 60 s (PRBS, hidden dead_time {case['hidden']['dead_time'][0]:.3f} s): "
-          f"{t.size} samples, reconcile {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s, not asserted), "
-          f"{cpu:.1f} s CPU, effects {r.effects}, RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm")
-    # the slowest record known since the Stribeck search (session 24): unseen draw 127, record 26
-    # (ramps, hidden Stribeck + lag), where a slip jump passes and the search runs in both folds
-    case = indep_cases(127)[25]
-    t, p, x = indep_record(case["valve"], ramps(case["seed"], 60.0), case["hidden"], *case["noise"], case["seed"])
-    t0, c0 = time.perf_counter(), _cpu()
-    r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
-    dt, cpu = time.perf_counter() - t0, _cpu() - c0
-    print(f"unseen draw 127 record 26 at 60 s (ramps, hidden Stribeck + lag): {t.size} samples, reconcile "
-          f"{dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s, not asserted), {cpu:.1f} s CPU, effects {r.effects}")
+    # printed, not asserted (see the module docstring): unseen draw 23 record 12 (PRBS, hidden dead
+    # time), and the slowest record known since the Stribeck search (session 24): unseen draw 127,
+    # record 26 (ramps, hidden Stribeck + lag), where a slip jump passes and the search runs in both folds
+    for draw, idx, maker in ((23, 11, prbs), (127, 25, ramps)):
+        case = indep_cases(draw)[idx]
+        t, p, x = indep_record(case["valve"], maker(case["seed"], 60.0), case["hidden"], *case["noise"], case["seed"])
+        t0, c0 = time.perf_counter(), _cpu()
+        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
+        dt, cpu = time.perf_counter() - t0, _cpu() - c0
+        hidden = ", ".join(f"{e} " + "/".join(f"{v:.3g}" for v in vs) for e, vs in case["hidden"].items())
+        print(f"unseen draw {draw} record {idx + 1} at 60 s ({case['exc']}, hidden {hidden}): {t.size} samples, reconcile "
+              f"{dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s, not asserted), {cpu:.1f} s CPU, effects "
+              f"{r.effects}, RMSE {r.baseline.rmse * 1e6:.1f} -> {r.final.rmse * 1e6:.1f} µm")
     p = PRESETS["low"].replace(tau_p=0.0)
     pc = square(periods=60.0 / 10.4).p_cmd
     ev = EffectValve.from_karnopp(p)
