@@ -194,7 +194,9 @@ class ReconcileConfig:
         that fit replaces the Stribeck candidate's local fit where it fits the fold better.  The
         nested slip jump is then refitted from the search's basin with ``v_s`` taken out, and
         replaces the slip jump candidate's fit where it fits the fold better (the simpler model
-        gets the same search).  At most two searches per fold in a run.  Measured against the
+        gets the same search) and passes the held-out test on its own (a refit that fits the
+        training blocks a little better may miss the held-out ones: unseen 135 #1, session 26).
+        At most two searches per fold in a run.  Measured against the
         workflow without it (ACCURACY.md and BENCHMARKS.md, issue 8, sessions 24–25): unseen
         above-noise Stribeck singles 22 → 27 of 35 named first, slip jump singles 45 → 44 of 46;
         both effects found in 21 of 60 friction pairs against 22; the other lines unchanged; the
