@@ -282,6 +282,26 @@ def test_the_stribeck_searches_of_a_run_stay_within_their_budget(monkeypatch):
     assert calls == []
 
 
+@pytest.mark.slow
+def test_a_slip_jump_refit_that_misses_the_held_out_blocks_does_not_replace_the_local_fit():
+    # a record of the independent simulator of the accuracy bench (unseen draw 135, record 1):
+    # a slip jump F_s = 1.56 F_c on random steps.  The slip jump refitted from the Stribeck
+    # search's basin fits the training blocks a little better than the local fit (by 0.14 x the
+    # noise power) but misses the held-out blocks at 40 x the noise; it must pass its own held-out
+    # test before it replaces the local fit (planted truth: a slip jump, fitting at the noise)
+    from tests.bench.accuracy_reconcile import indep_record, random_steps
+
+    valve = {"k": 246093.45349244023, "sa": 0.06, "m": 2.801505865198796, "fc": 692.2717106897935,
+             "fv": 10158.17651120432, "bias": 0.0005530754645819225, "tau_vp": 0.0}
+    t, p, x = indep_record(valve, random_steps(4900), {"slip_jump": (1.5635149768219496,)},
+                           6.655425767260901e-06, 364.8833611424828, 4900)
+    r = reconcile(ValveData(t, p, x, "slip jump"), config=ReconcileConfig(sa=valve["sa"]))
+    assert r.effects[:1] == ["slip_jump"]
+    assert r.steps[0].heldout_rmse < 1.5 * r.noise_floor
+    assert r.final.rmse <= 0.5 * r.baseline.rmse
+    assert 1.2 < r.steps[0].params["Fs"] / r.steps[0].params["Fc"] < 2.0
+
+
 def test_alternatives_are_every_effect_compatible_with_the_model():
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "slip_jump", "stribeck"}
     assert set(_alternatives("deadband", [], "dead_time")) == {"actuator_lag", "slip_jump", "stribeck"}
