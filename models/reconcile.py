@@ -1764,10 +1764,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", todo, memo)
 
             def refit_single(cur2, cur2_sse, eff=eff):
-                for e in [eff] + todo if cfg.fold_start else []:
+                for e in todo if cfg.fold_start else []:
                     # each candidate's second-fold fit also starts from its first-fold fit, as the current
-                    # model's second-fold fit starts from its first (second_fold); before a swap uses it
-                    if ("plain", e) not in memo2 and ("plain", e) in memo:
+                    # model's second-fold fit starts from its first (second_fold); every candidate's before
+                    # a swap uses it
+                    if ("plain", e) not in memo2:
                         plain_fit(e, cur2, cur2_sse, "test", [memo["plain", e][0].vals], memo2)
                 fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", todo, memo2)
                 return fit2.vals, with2, n_params(eff, rep2, with2)
