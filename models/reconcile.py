@@ -203,6 +203,11 @@ class ReconcileConfig:
         slowest 60 s record measured 27 → 43 s.
     stribeck_maxiter : generations of that search (it stops earlier once the fold fits within
         1.1 times the noise).
+    fold_start : in the two-fold cross-fit, each candidate's fit on the held-out blocks also starts
+        from its fit on the training blocks, as the current model's does (without it, the second
+        fold's multi-start alone may end in another basin, and the pooled test fails a candidate
+        that fits the held-out blocks well: unseen 141 #25, slip jump + dead time, where a lag was
+        named instead, session 26).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
@@ -235,6 +240,7 @@ class ReconcileConfig:
     global_polish: int = 2
     stribeck_search: bool = True
     stribeck_maxiter: int = 50
+    fold_start: bool = True
     split_check: int = 1
 
     def __post_init__(self) -> None:
@@ -1758,6 +1764,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             fit, replaces, with_, fit_free = fit_candidate(eff, cur, cur_sse, "train", todo, memo)
 
             def refit_single(cur2, cur2_sse, eff=eff):
+                for e in todo if cfg.fold_start else []:
+                    # each candidate's second-fold fit also starts from its first-fold fit, as the current
+                    # model's second-fold fit starts from its first (second_fold); every candidate's before
+                    # a swap uses it
+                    if ("plain", e) not in memo2:
+                        plain_fit(e, cur2, cur2_sse, "test", [memo["plain", e][0].vals], memo2)
                 fit2, rep2, with2, _ = fit_candidate(eff, cur2, cur2_sse, "test", todo, memo2)
                 return fit2.vals, with2, n_params(eff, rep2, with2)
 

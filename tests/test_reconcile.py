@@ -302,6 +302,26 @@ def test_a_slip_jump_refit_that_misses_the_held_out_blocks_does_not_replace_the_
     assert 1.2 < r.steps[0].params["Fs"] / r.steps[0].params["Fc"] < 2.0
 
 
+@pytest.mark.slow
+def test_the_second_fold_starts_each_candidate_from_its_first_fold_fit():
+    # a record of the independent simulator of the accuracy bench (unseen draw 141, record 25): a
+    # slip jump F_s = 1.32 F_c and a dead time of 79 ms on random steps through a 1 s V/P lag.
+    # Beside the slip jump, the dead time's fit on the training blocks fits the held-out blocks
+    # near the noise; its fit on the held-out blocks from the multi-start alone ended in another
+    # basin, the pooled cross-fit failed it, and a lag was named instead.  Started from its first
+    # fold's fit, as the current model's second fold is, both planted effects are named
+    from tests.bench.accuracy_reconcile import indep_record, random_steps
+
+    valve = {"k": 170918.82890120576, "sa": 0.06, "m": 2.7265900408849193, "fc": 463.93223198305446,
+             "fv": 9592.035332879836, "bias": 0.0026327571403979397, "tau_vp": 1.0}
+    hidden = {"slip_jump": (1.3223393055466823,), "dead_time": (0.07899976864965574,)}
+    t, p, x = indep_record(valve, random_steps(5524), hidden, 7.930887900472061e-06, 196.19239732108204, 5524)
+    r = reconcile(ValveData(t, p, x, "pair"), config=ReconcileConfig(sa=valve["sa"]))
+    assert sorted(r.effects) == ["dead_time", "slip_jump"]
+    assert r.final.params["theta_s"] == pytest.approx(0.079, rel=0.2)
+    assert r.final.rmse < 1.5 * r.noise_floor
+
+
 def test_alternatives_are_every_effect_compatible_with_the_model():
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "slip_jump", "stribeck"}
     assert set(_alternatives("deadband", [], "dead_time")) == {"actuator_lag", "slip_jump", "stribeck"}
