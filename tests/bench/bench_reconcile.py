@@ -12,7 +12,9 @@ lag: the slowest since the Stribeck search of session 24).  Also
 times, in the same run, the compiled simulator against the pure-Python one of issue 7
 (:func:`models.karnopp.simulate`) on the same record: the fits run the simulator hundreds of times.
 
-Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/bench_reconcile.py``
+Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/bench_reconcile.py``; the 60 s
+version of any unseen record, one at a time: ``.venv/bin/python -m tests.bench.bench_reconcile
+DRAW:I ...`` (``I`` from 0, as in ``accuracy_reconcile.py``; :func:`main`).
 """
 
 import os
@@ -27,7 +29,7 @@ from models.reconcile import ReconcileConfig, reconcile
 from models.valve_effects import EffectValve, hidden_record, simulate_effects
 from models.valve_tests import isa_steps, square
 
-from .accuracy_reconcile import indep_cases, indep_record, prbs, ramps
+from .accuracy_reconcile import indep_cases, indep_record, prbs, ramps, random_steps, sweep
 from .conftest import machine_note
 
 
@@ -104,3 +106,42 @@ def test_split_check_cost():
         print(f"split_check {n}: {walls[n]:.1f} s wall, effects {r.effects}, named {r.split_named or '-'}")
     print(f"ratio 3 draws / 1 draw: {walls[3] / walls[1]:.2f}")
     assert r.split_draws == 3
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m tests.bench.bench_reconcile DRAW:I ...``: the 60 s version of each unseen record
+    (same valve, hidden effects, noise and seed; a 60 s excitation) reconciled alone, one after
+    the other: wall and CPU time, the Stribeck searches made (:func:`models.reconcile._stribeck_search`)
+    and the time in them, the effects named."""
+    import sys
+
+    from models import reconcile as rc
+
+    makers = {"random-steps": random_steps, "ramps": ramps, "sine-sweep": sweep, "prbs": prbs}
+    search, calls = rc._stribeck_search, []
+
+    def counted(*a, **kw):
+        t0 = time.perf_counter()
+        try:
+            return search(*a, **kw)
+        finally:
+            calls.append(time.perf_counter() - t0)
+
+    rc._stribeck_search = counted
+    print(f"machine: {machine_note()}")
+    for tag in sys.argv[1:] if argv is None else argv:
+        draw, _, idx = tag.partition(":")
+        case = indep_cases(int(draw))[int(idx)]
+        t, p, x = indep_record(case["valve"], makers[case["exc"]](case["seed"], 60.0), case["hidden"], *case["noise"],
+                               case["seed"])
+        calls.clear()
+        t0, c0 = time.perf_counter(), _cpu()
+        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
+        dt, cpu = time.perf_counter() - t0, _cpu() - c0
+        print(f"{tag} ({draw} #{int(idx) + 1}, {case['exc']}, hidden {'+'.join(case['hidden']) or 'none'}): {t.size} "
+              f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {len(calls)} Stribeck "
+              f"searches ({sum(calls):.1f} s), effects {r.effects}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
