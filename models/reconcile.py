@@ -1789,22 +1789,32 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             cands.append((assess(eff, eff, fit.vals, with_, f"{replaces}->{with_}" if replaces else "",
                                  n_params(eff, replaces, with_), t_crit, refit_single), fit.vals, fit_free))
         at = {c.effect: i for i, (c, _, _) in enumerate(cands)}
+
+        def stribeck_searched(v_about: dict[str, float], about2: Callable) -> tuple:
+            """The Stribeck candidate searched about ``v_about`` on the training blocks (stribeck_fit)
+            and, in the cross-fit, about ``about2(cur2, cur2_sse)`` on the held-out blocks, judged as
+            (candidate, values, free parameters)."""
+            fit = stribeck_fit(v_about, cands[at["stribeck"]][1], "train")
+            p_st = n_params("stribeck", "", "")
+
+            def refit(cur2, cur2_sse):
+                v_about2 = about2(cur2, cur2_sse)
+                v_st = plain_fit("stribeck", cur2, cur2_sse, "test", [], memo2)[0].vals
+                return stribeck_fit(v_about2, v_st, "test").vals, "", p_st
+
+            return (assess("stribeck", "stribeck", fit.vals, "", "", p_st, t_crit, refit), fit.vals,
+                    free + _effect_names("stribeck"))
+
         if (cfg.stribeck_search and "slip_jump" in at and "stribeck" in at and cands[at["slip_jump"]][0].passed
                 and not cands[at["slip_jump"]][0].replaces and not cands[at["stribeck"]][0].replaces
                 and not stribeck_spent(stribeck_key(cands[at["slip_jump"]][1], "train"))):
             # a slip jump passes: the Stribeck candidate is also searched about the slip jump's fit
             # (stribeck_fit); in both folds of the cross-fit, so that each fold's fit sees its own blocks only.
             # Two slip jump fits at most per fold (_MAX_STRIBECK_SEARCHES): the run's cost stays bounded
-            fit = stribeck_fit(cands[at["slip_jump"]][1], cands[at["stribeck"]][1], "train")
-            p_st = n_params("stribeck", "", "")
-
-            def refit_stribeck(cur2, cur2_sse, p_st=p_st):
-                v_sj = plain_fit("slip_jump", cur2, cur2_sse, "test", [], memo2)[0].vals
-                v_st = plain_fit("stribeck", cur2, cur2_sse, "test", [], memo2)[0].vals
-                return stribeck_fit(v_sj, v_st, "test").vals, "", p_st
-
-            cands[at["stribeck"]] = (assess("stribeck", "stribeck", fit.vals, "", "", p_st, t_crit, refit_stribeck),
-                                     fit.vals, free + _effect_names("stribeck"))
+            cands[at["stribeck"]] = stribeck_searched(
+                cands[at["slip_jump"]][1],
+                lambda cur2, cur2_sse: plain_fit("slip_jump", cur2, cur2_sse, "test", [], memo2)[0].vals)
+            fit_st = cands[at["stribeck"]][1]
 
             def slip_from(v_st: dict[str, float], v_sj: dict[str, float], fold: str) -> dict[str, float]:
                 # the nested slip jump gets the same search: refitted from its basin with v_s taken out
@@ -1812,7 +1822,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                          use=fold)
                 return f.vals if fold_sse(f.vals, fold) < fold_sse(v_sj, fold) else v_sj
 
-            v_sj = slip_from(fit.vals, cands[at["slip_jump"]][1], "train")
+            v_sj = slip_from(fit_st, cands[at["slip_jump"]][1], "train")
             if v_sj is not cands[at["slip_jump"]][1]:
                 p_sj = n_params("slip_jump", "", "")
 
@@ -1833,15 +1843,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # searched about the current model (a slip jump of size zero).  From a Karnopp fit with
             # F_c between the truth's F_c and F_s the local fits end far from a Stribeck curve that
             # the search finds (unseen 131 #5: held out 3.55 against the baseline's 5.07 x the noise)
-            fit = stribeck_fit(cur, cands[at["stribeck"]][1], "train")
-            p_st = n_params("stribeck", "", "")
-
-            def refit_stribeck_cur(cur2, cur2_sse, p_st=p_st):
-                v_st = plain_fit("stribeck", cur2, cur2_sse, "test", [], memo2)[0].vals
-                return stribeck_fit(cur2, v_st, "test").vals, "", p_st
-
-            cands[at["stribeck"]] = (assess("stribeck", "stribeck", fit.vals, "", "", p_st, t_crit, refit_stribeck_cur),
-                                     fit.vals, free + _effect_names("stribeck"))
+            cands[at["stribeck"]] = stribeck_searched(cur, lambda cur2, cur2_sse: cur2)
         rounds.append(tuple(c for c, _, _ in cands))
         passing = [(c, v, f) for c, v, f in cands if c.passed]
         rivals = cands  # the candidates the winner is reported against

@@ -345,12 +345,13 @@ def visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> dict[
     return out
 
 
-def make_record(case: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """``(t, p, x, S_a)`` of one case."""
+def make_record(case: dict, duration: float = 40.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(t, p, x, S_a)`` of one case; an independent case's excitation lasts ``duration`` seconds
+    (the same valve, hidden effects, noise and seed at any length: bench_reconcile.py's 60 s records)."""
     nx, npr = case["noise"]
     if case.get("indep"):
         maker = {"random-steps": random_steps, "ramps": ramps, "sine-sweep": sweep, "prbs": prbs}[case["exc"]]
-        t, p, x = indep_record(case["valve"], maker(case["seed"]), case["hidden"], nx, npr, case["seed"])
+        t, p, x = indep_record(case["valve"], maker(case["seed"], duration), case["hidden"], nx, npr, case["seed"])
         return t, p, x, case["valve"]["sa"]
     params = PRESETS[case["preset"]].replace(tau_p=case["tau_vp"])
     rec = hidden_record(params, own_excitation(case["exc"], case["seed"]), case["hidden"], noise_x=nx,

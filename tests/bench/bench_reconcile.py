@@ -29,7 +29,7 @@ from models.reconcile import ReconcileConfig, reconcile
 from models.valve_effects import EffectValve, hidden_record, simulate_effects
 from models.valve_tests import isa_steps, square
 
-from .accuracy_reconcile import indep_cases, indep_record, prbs, ramps, random_steps, sweep
+from .accuracy_reconcile import indep_cases, make_record
 from .conftest import machine_note
 
 
@@ -61,11 +61,11 @@ def test_reconcile_60s_record_under_60s():
     # printed, not asserted (see the module docstring): unseen draw 23 record 12 (PRBS, hidden dead
     # time), and the slowest record known since the Stribeck search (session 24): unseen draw 127,
     # record 26 (ramps, hidden Stribeck + lag), where a slip jump passes and the search runs in both folds
-    for draw, idx, maker in ((23, 11, prbs), (127, 25, ramps)):
+    for draw, idx in ((23, 11), (127, 25)):
         case = indep_cases(draw)[idx]
-        t, p, x = indep_record(case["valve"], maker(case["seed"], 60.0), case["hidden"], *case["noise"], case["seed"])
+        t, p, x, sa = make_record(case, 60.0)
         t0, c0 = time.perf_counter(), _cpu()
-        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
+        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=sa))
         dt, cpu = time.perf_counter() - t0, _cpu() - c0
         hidden = ", ".join(f"{e} " + "/".join(f"{v:.3g}" for v in vs) for e, vs in case["hidden"].items())
         print(f"unseen draw {draw} record {idx + 1} at 60 s ({case['exc']}, hidden {hidden}): {t.size} samples, reconcile "
@@ -117,7 +117,6 @@ def main(argv: list[str] | None = None) -> None:
 
     from models import reconcile as rc
 
-    makers = {"random-steps": random_steps, "ramps": ramps, "sine-sweep": sweep, "prbs": prbs}
     search, calls = rc._stribeck_search, []
 
     def counted(*a, **kw):
@@ -132,11 +131,10 @@ def main(argv: list[str] | None = None) -> None:
     for tag in sys.argv[1:] if argv is None else argv:
         draw, _, idx = tag.partition(":")
         case = indep_cases(int(draw))[int(idx)]
-        t, p, x = indep_record(case["valve"], makers[case["exc"]](case["seed"], 60.0), case["hidden"], *case["noise"],
-                               case["seed"])
+        t, p, x, sa = make_record(case, 60.0)
         calls.clear()
         t0, c0 = time.perf_counter(), _cpu()
-        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=case["valve"]["sa"]))
+        r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=sa))
         dt, cpu = time.perf_counter() - t0, _cpu() - c0
         print(f"{tag} ({draw} #{int(idx) + 1}, {case['exc']}, hidden {'+'.join(case['hidden']) or 'none'}): {t.size} "
               f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {len(calls)} Stribeck "
