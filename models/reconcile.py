@@ -73,7 +73,6 @@ from __future__ import annotations
 
 import math
 import multiprocessing
-import os
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from contextvars import ContextVar
@@ -1710,10 +1709,19 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             sse = train_sse(again)
             if sse < cur_sse - cfg.min_gain * noise_pow * n_train and (out is None or sse < out[0]):
                 out = sse, again
-        if out is not None and out[1].get("nb") != cur.get("nb") and os.environ.get("LOOPWATCH_S29_HOOK"):
-            with open(os.environ["LOOPWATCH_S29_HOOK"], "a") as fh:
-                fh.write(f"{sigma!r} rule {cur.get('nb')} -> {out[1].get('nb')}\n")
         return None if out is None else out[1]
+
+    def moved(again: dict[str, float], by: str) -> None:
+        """The search goes on from ``again``, a better basin of the current model that the ``by``
+        candidate's fit found (better_basin): an accepted friction effect holds its stick rule,
+        and the last step reports that model, not the one it replaces."""
+        if again.get("nb") != cur.get("nb"):
+            friction_rule.clear()
+            friction_rule.update({e: {"nb": again["nb"], "dv": again.get("dv", dv)} for e in accepted if e in _EXCLUSIVE})
+        if steps:
+            steps[-1] = replace(full_step(accepted[-1], again, free, f"{steps[-1].evidence}; refitted in a better basin "
+                                          f"found by the {by} candidate's fit"),
+                                indistinguishable_from=steps[-1].indistinguishable_from)
 
     while len(accepted) < cfg.max_effects:
         res_all_cur = _residuals(cur, recs, cfg, dv)  # one simulation of the current model per round
@@ -1916,6 +1924,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 # the candidates are tested again from it
                 again = better_basin(polished[0][2].vals, cur, cur_sse)
                 if again is not None:
+                    moved(again, polished[0][1])
                     cur = again
                     carry = {e: f.vals for _, e, f, _ in polished}
                     if not accepted:
@@ -1958,15 +1967,9 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # (a swapped-out effect's parameters come back from the current model)
             again = better_basin(best_v, cur, cur_sse)
             if again is not None:
-                if again.get("nb") != cur.get("nb"):  # the accepted friction effect holds the new rule
-                    friction_rule.clear()
-                    friction_rule.update({e: {"nb": again["nb"], "dv": again.get("dv", dv)} for e in accepted if e in _EXCLUSIVE})
+                moved(again, best_c.effect)
                 cur = again
                 refits += 1
-                if steps:  # the last step reports the model the search goes on from
-                    steps[-1] = replace(full_step(accepted[-1], cur, free, steps[-1].evidence + "; refitted in a better "
-                                                  f"basin found by the {best_c.effect} candidate's fit"),
-                                        indistinguishable_from=steps[-1].indistinguishable_from)
                 carry = {c.effect: v for c, v, _ in cands if not c.replaces}
                 carry.update({c.effect: v for c, v, _ in gcands})  # the global fits start their local fits next round
                 if not accepted:  # the baseline itself was in a worse basin: report the better one
