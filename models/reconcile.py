@@ -57,7 +57,9 @@ missing effect explains it, and how much does adding it shrink the gap.
    Before the best passing effect is credited with its gain, the current model is refitted from
    the winner's parameters with the effect taken out; if that fits better, the gain came from a
    better basin of the model we already have: it replaces the current model (the reported
-   baseline too, while no effect is accepted) and the candidates are tested again.
+   baseline while no effect is accepted, else the last step) and the candidates are tested
+   again.  Beside an accepted friction effect that refit is also tried with the stick rule the
+   winner chose: the rule is the current model's, not the new effect's.
    The best passing effect (largest ΔBIC) is added and the search repeats, so that two hidden
    effects are both found; it stops when no effect passes or when the model is within the
    noise (held-out MSE − noise power < ``min_gain``·noise power).  When no single effect passes
