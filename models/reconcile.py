@@ -57,7 +57,9 @@ missing effect explains it, and how much does adding it shrink the gap.
    Before the best passing effect is credited with its gain, the current model is refitted from
    the winner's parameters with the effect taken out; if that fits better, the gain came from a
    better basin of the model we already have: it replaces the current model (the reported
-   baseline too, while no effect is accepted) and the candidates are tested again.
+   baseline while no effect is accepted, else the last step) and the candidates are tested
+   again.  Beside an accepted friction effect that refit is also tried with the stick rule the
+   winner chose: the rule is the current model's, not the new effect's.
    The best passing effect (largest ΔBIC) is added and the search repeats, so that two hidden
    effects are both found; it stops when no effect passes or when the model is within the
    noise (held-out MSE − noise power < ``min_gain``·noise power).  When no single effect passes
@@ -1693,11 +1695,35 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         """The current model ``cur`` refitted from a candidate's fit ``vals`` with the candidate's
         effect taken out, if that fits the training blocks better than ``cur`` by at least the
         relevance bar ``min_gain``: the candidate's search merely found a better basin of the
-        model we already have.  Else None."""
-        again = {n: vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
-        again.update({n: cur[n] for n in ("dv", "nb") if n in cur})
-        again = _fit(again, free, recs, cfg, dv).vals
-        return again if train_sse(again) < cur_sse - cfg.min_gain * noise_pow * n_train else None
+        model we already have.  Else None.
+
+        Beside an accepted friction effect the current model is refitted both with its own stick
+        rule and with the rule the candidate chose (plain_fit lets it choose again): the rule is
+        the current model's, and a candidate may owe its whole gain to the switch (unseen 61 #28:
+        a lag of 10 µs beside a slip jump passed by the switch alone)."""
+        rules = [{n: cur[n] for n in ("dv", "nb") if n in cur}]
+        if "nb" in cur and vals.get("nb", cur["nb"]) != cur["nb"] and any(e in _EXCLUSIVE for e in accepted):
+            rules.append({"nb": vals["nb"], "dv": vals.get("dv", cur.get("dv", dv))})
+        out = None
+        for rule in rules:
+            again = {n: vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
+            again = _fit({**again, **rule}, free, recs, cfg, dv).vals
+            sse = train_sse(again)
+            if sse < cur_sse - cfg.min_gain * noise_pow * n_train and (out is None or sse < out[0]):
+                out = sse, again
+        return None if out is None else out[1]
+
+    def moved(again: dict[str, float], by: str) -> None:
+        """The search goes on from ``again``, a better basin of the current model that the ``by``
+        candidate's fit found (better_basin): an accepted friction effect holds its stick rule,
+        and the last step reports that model, not the one it replaces."""
+        if again.get("nb") != cur.get("nb"):
+            friction_rule.clear()
+            friction_rule.update({e: {"nb": again["nb"], "dv": again.get("dv", dv)} for e in accepted if e in _EXCLUSIVE})
+        if steps:
+            steps[-1] = replace(full_step(accepted[-1], again, free, f"{steps[-1].evidence}; refitted in a better basin "
+                                          f"found by the {by} candidate's fit"),
+                                indistinguishable_from=steps[-1].indistinguishable_from)
 
     while len(accepted) < cfg.max_effects:
         res_all_cur = _residuals(cur, recs, cfg, dv)  # one simulation of the current model per round
@@ -1900,6 +1926,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 # the candidates are tested again from it
                 again = better_basin(polished[0][2].vals, cur, cur_sse)
                 if again is not None:
+                    moved(again, polished[0][1])
                     cur = again
                     carry = {e: f.vals for _, e, f, _ in polished}
                     if not accepted:
@@ -1942,6 +1969,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # (a swapped-out effect's parameters come back from the current model)
             again = better_basin(best_v, cur, cur_sse)
             if again is not None:
+                moved(again, best_c.effect)
                 cur = again
                 refits += 1
                 carry = {c.effect: v for c, v, _ in cands if not c.replaces}

@@ -346,6 +346,26 @@ def test_stribeck_is_searched_about_the_current_model_when_nothing_passes():
     assert r0.effects == []
 
 
+@pytest.mark.slow
+def test_a_stick_rule_switch_is_the_current_models_not_a_new_effects():
+    # a record of the independent simulator of the accuracy bench (unseen draw 61, record 28): slip
+    # jump F_s = 1.53 F_c and a 0.58 mm deadband on PRBS through a 0.3 s V/P lag; no lag hidden.
+    # Beside the accepted slip jump, the lag candidate chose the other stick rule and passed with a
+    # lag of 10 µs: its whole gain was the rule, which is the current model's (better_basin)
+    from tests.bench.accuracy_reconcile import indep_record, prbs
+
+    valve = {"k": 138270.13585875565, "sa": 0.0445, "m": 2.26387633801433, "fc": 554.6547282507452,
+             "fv": 5210.96784570257, "bias": 0.0017914992114166832, "tau_vp": 0.3}
+    hidden = {"slip_jump": (1.531828475466967,), "deadband": (0.0005762729377521554,)}
+    t, p, x = indep_record(valve, prbs(7227), hidden, 6.031383194911382e-06, 73.53918492946521, 7227)
+    r = reconcile(ValveData(t, p, x, "pair"), config=ReconcileConfig(sa=valve["sa"]))
+    assert r.effects[:1] == ["slip_jump"]
+    assert "actuator_lag" not in r.effects  # planted truth: no lag
+    # the last step reports the model the search stopped at (the stop message's held-out RMSE)
+    stop = float(r.message.split("held-out RMSE ")[1].split(" µm")[0])
+    assert r.final.heldout_rmse * 1e6 == pytest.approx(stop, abs=0.01)
+
+
 def test_alternatives_are_every_effect_compatible_with_the_model():
     assert set(_alternatives("actuator_lag", [], "deadband")) == {"dead_time", "slip_jump", "stribeck"}
     assert set(_alternatives("deadband", [], "dead_time")) == {"actuator_lag", "slip_jump", "stribeck"}
