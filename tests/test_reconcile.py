@@ -75,6 +75,17 @@ def test_a_misfit_no_candidate_explains_is_not_reported_as_nothing_missing():
     assert "no candidate effect passes the held-out test; the model still misses the data" in r.message
 
 
+def _unseen(tag: str) -> tuple[ValveData, ReconcileConfig]:
+    """Record ``tag`` (``DRAW:I``, ``I`` from 0: ``61:27`` is unseen draw 61, record 28) of the
+    accuracy bench's independent simulator, with the workflow's configuration for its valve (S_a).
+    The draws are seeded: the record is the one the bench runs."""
+    from tests.bench.accuracy_reconcile import make_record, select
+
+    ((_, case),) = select(tag)
+    t, p, x, sa = make_record(case)
+    return ValveData(t, p, x, tag), ReconcileConfig(sa=sa)
+
+
 @pytest.mark.slow
 def test_an_effect_fitted_at_size_zero_is_not_named():
     # unseen draw 89, record 3 of the accuracy bench: a slip jump of 1.26 on a sine sweep behind a
@@ -82,13 +93,8 @@ def test_an_effect_fitted_at_size_zero_is_not_named():
     # with the slip jump, the swap's alternative actuator_lag fitted at tau = 1e-11 s and was named
     # first: its gain was the other stick rule.  A swap to an effect of size zero takes the swapped
     # effect out instead
-    from tests.bench.accuracy_reconcile import indep_record, sweep
-
-    valve = {"k": 230276.65295391157, "sa": 0.0445, "m": 1.0566658250869871, "fc": 341.9568059193955,
-             "fv": 5900.779948549098, "bias": 0.0007468645308784938, "tau_vp": 0.3}
-    t, p, x = indep_record(valve, sweep(10002), {"slip_jump": (1.2615869911479185,)}, 1.0258575646342716e-05,
-                           367.1831778992991, 10002)
-    r = reconcile(ValveData(t, p, x, "slip jump"), config=ReconcileConfig(sa=valve["sa"]))
+    data, cfg = _unseen("89:2")
+    r = reconcile(data, config=cfg)
     assert r.effects == ["slip_jump"]
     assert r.final.params["Fs"] / r.final.params["Fc"] == pytest.approx(1.26, rel=0.1)
     assert r.final.rmse < 1.2 * r.noise_floor
@@ -194,13 +200,7 @@ def test_two_hidden_effects_that_no_single_effect_explains_are_found_together():
     # slip jump of 1.43 and a 1.38 mm deadband on a PRBS through a 1 s V/P lag.  Either effect
     # alone fits worse than the baseline out of sample, so no single effect passes; the two
     # together fit at the noise (planted truth)
-    from tests.bench.accuracy_reconcile import indep_record, prbs
-
-    valve = {"k": 336222.4283892678, "sa": 0.06, "m": 1.9563140749338328, "fc": 460.0860199355867,
-             "fv": 27785.711393294707, "bias": 0.0015984671432653732, "tau_vp": 1.0}
-    hidden = {"slip_jump": (1.42620317163729,), "deadband": (0.001382595544529123,)}
-    t, p, x = indep_record(valve, prbs(6427), hidden, 1.3954479799900394e-05, 137.27195561070795, 6427)
-    data, cfg = ValveData(t, p, x, "pair"), ReconcileConfig(sa=valve["sa"])
+    data, cfg = _unseen("53:27")
     assert reconcile(data, config=replace(cfg, pair_search=False)).effects == []
     r = reconcile(data, config=cfg)
     assert set(r.effects) == set(hidden)
@@ -289,13 +289,8 @@ def test_a_slip_jump_refit_that_misses_the_held_out_blocks_does_not_replace_the_
     # search's basin fits the training blocks a little better than the local fit (by 0.14 x the
     # noise power) but misses the held-out blocks at 40 x the noise; it must pass its own held-out
     # test before it replaces the local fit (planted truth: a slip jump, fitting at the noise)
-    from tests.bench.accuracy_reconcile import indep_record, random_steps
-
-    valve = {"k": 246093.45349244023, "sa": 0.06, "m": 2.801505865198796, "fc": 692.2717106897935,
-             "fv": 10158.17651120432, "bias": 0.0005530754645819225, "tau_vp": 0.0}
-    t, p, x = indep_record(valve, random_steps(4900), {"slip_jump": (1.5635149768219496,)},
-                           6.655425767260901e-06, 364.8833611424828, 4900)
-    r = reconcile(ValveData(t, p, x, "slip jump"), config=ReconcileConfig(sa=valve["sa"]))
+    data, cfg = _unseen("135:0")
+    r = reconcile(data, config=cfg)
     assert r.effects[:1] == ["slip_jump"]
     assert r.steps[0].heldout_rmse < 1.5 * r.noise_floor
     assert r.final.rmse <= 0.5 * r.baseline.rmse
@@ -310,13 +305,8 @@ def test_the_second_fold_starts_each_candidate_from_its_first_fold_fit():
     # near the noise; its fit on the held-out blocks from the multi-start alone ended in another
     # basin, the pooled cross-fit failed it, and a lag was named instead.  Started from its first
     # fold's fit, as the current model's second fold is, both planted effects are named
-    from tests.bench.accuracy_reconcile import indep_record, random_steps
-
-    valve = {"k": 170918.82890120576, "sa": 0.06, "m": 2.7265900408849193, "fc": 463.93223198305446,
-             "fv": 9592.035332879836, "bias": 0.0026327571403979397, "tau_vp": 1.0}
-    hidden = {"slip_jump": (1.3223393055466823,), "dead_time": (0.07899976864965574,)}
-    t, p, x = indep_record(valve, random_steps(5524), hidden, 7.930887900472061e-06, 196.19239732108204, 5524)
-    r = reconcile(ValveData(t, p, x, "pair"), config=ReconcileConfig(sa=valve["sa"]))
+    data, cfg = _unseen("141:24")
+    r = reconcile(data, config=cfg)
     assert sorted(r.effects) == ["dead_time", "slip_jump"]
     assert r.final.params["theta_s"] == pytest.approx(0.079, rel=0.2)
     assert r.final.rmse < 1.5 * r.noise_floor
@@ -330,19 +320,14 @@ def test_stribeck_is_searched_about_the_current_model_when_nothing_passes():
     # Stribeck fits from the Karnopp baseline (F_c between the truth's F_c and F_s) failed: nothing
     # was named at 4.4 x the noise.  Searched about the current model, Stribeck is named (planted
     # truth: Stribeck friction, F_s / F_c 1.41)
-    from tests.bench.accuracy_reconcile import indep_record, random_steps
-
-    valve = {"k": 188622.8783172852, "sa": 0.0445, "m": 1.332962145693239, "fc": 434.4110265237874,
-             "fv": 7574.6869562374195, "bias": 0.0019813387363902713, "tau_vp": 0.3}
-    hidden = {"stribeck": (1.407380109920604, 0.008264034995969014)}
-    t, p, x = indep_record(valve, random_steps(4504), hidden, 1.7220483860804042e-05, 176.91437396433128, 4504)
-    r = reconcile(ValveData(t, p, x, "stribeck"), config=ReconcileConfig(sa=valve["sa"]))
+    data, cfg = _unseen("131:4")
+    r = reconcile(data, config=cfg)
     assert r.effects[:1] == ["stribeck"]
     assert r.steps[0].params["Fs"] / r.steps[0].params["Fc"] > 1.15
     assert r.steps[0].params["vs"] == pytest.approx(0.0083, rel=0.5)
     assert r.final.rmse < 0.8 * r.baseline.rmse
     # without the search about the current model, nothing is named on this record
-    r0 = reconcile(ValveData(t, p, x, "stribeck"), config=ReconcileConfig(sa=valve["sa"], stribeck_base=False))
+    r0 = reconcile(data, config=replace(cfg, stribeck_base=False))
     assert r0.effects == []
 
 
@@ -352,13 +337,8 @@ def test_a_stick_rule_switch_is_the_current_models_not_a_new_effects():
     # jump F_s = 1.53 F_c and a 0.58 mm deadband on PRBS through a 0.3 s V/P lag; no lag hidden.
     # Beside the accepted slip jump, the lag candidate chose the other stick rule and passed with a
     # lag of 10 µs: its whole gain was the rule, which is the current model's (better_basin)
-    from tests.bench.accuracy_reconcile import indep_record, prbs
-
-    valve = {"k": 138270.13585875565, "sa": 0.0445, "m": 2.26387633801433, "fc": 554.6547282507452,
-             "fv": 5210.96784570257, "bias": 0.0017914992114166832, "tau_vp": 0.3}
-    hidden = {"slip_jump": (1.531828475466967,), "deadband": (0.0005762729377521554,)}
-    t, p, x = indep_record(valve, prbs(7227), hidden, 6.031383194911382e-06, 73.53918492946521, 7227)
-    r = reconcile(ValveData(t, p, x, "pair"), config=ReconcileConfig(sa=valve["sa"]))
+    data, cfg = _unseen("61:27")
+    r = reconcile(data, config=cfg)
     assert r.effects[:1] == ["slip_jump"]
     assert "actuator_lag" not in r.effects  # planted truth: no lag
     # the last step reports the model the search stopped at (the stop message's held-out RMSE)
