@@ -203,7 +203,7 @@ def test_two_hidden_effects_that_no_single_effect_explains_are_found_together():
     data, cfg = _unseen("53:27")
     assert reconcile(data, config=replace(cfg, pair_search=False)).effects == []
     r = reconcile(data, config=cfg)
-    assert set(r.effects) == set(hidden)
+    assert set(r.effects) == {"slip_jump", "deadband"}  # the planted pair
     assert r.final.rmse < 1.1 * r.noise_floor
     assert "added together" in r.steps[-1].evidence
     # every reported model is fitted on the training blocks, so its held-out RMSE is out of sample:
