@@ -1704,22 +1704,29 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         rules = [{n: cur[n] for n in ("dv", "nb") if n in cur}]
         if "nb" in cur and vals.get("nb", cur["nb"]) != cur["nb"] and any(e in _EXCLUSIVE for e in accepted):
             rules.append({"nb": vals["nb"], "dv": vals.get("dv", cur.get("dv", dv))})
+        start = {n: vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
         out = None
         for rule in rules:
-            again = {n: vals.get(n, x) for n, x in cur.items() if n not in ("dv", "nb")}
-            again = _fit({**again, **rule}, free, recs, cfg, dv).vals
+            again = _fit({**start, **rule}, free, recs, cfg, dv).vals
             sse = train_sse(again)
             if sse < cur_sse - cfg.min_gain * noise_pow * n_train and (out is None or sse < out[0]):
                 out = sse, again
         return None if out is None else out[1]
 
+    def hold_rule(vals: dict[str, float]) -> None:
+        """The accepted friction effects hold the stick rule of ``vals``; every other candidate
+        chooses its rule again in the next round (plain_fit)."""
+        friction_rule.clear()
+        friction_rule.update({e: {"nb": vals["nb"], "dv": vals.get("dv", dv)} for e in accepted if e in _EXCLUSIVE and "nb" in vals})
+
     def moved(again: dict[str, float], by: str) -> None:
         """The search goes on from ``again``, a better basin of the current model that the ``by``
-        candidate's fit found (better_basin): an accepted friction effect holds its stick rule,
-        and the last step reports that model, not the one it replaces."""
+        candidate's fit found (better_basin): it becomes the current model, an accepted friction
+        effect holds its stick rule, and the last step reports it, not the model it replaces."""
+        nonlocal cur
         if again.get("nb") != cur.get("nb"):
-            friction_rule.clear()
-            friction_rule.update({e: {"nb": again["nb"], "dv": again.get("dv", dv)} for e in accepted if e in _EXCLUSIVE})
+            hold_rule(again)
+        cur = again
         if steps:
             steps[-1] = replace(full_step(accepted[-1], again, free, f"{steps[-1].evidence}; refitted in a better basin "
                                           f"found by the {by} candidate's fit"),
@@ -1927,7 +1934,6 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 again = better_basin(polished[0][2].vals, cur, cur_sse)
                 if again is not None:
                     moved(again, polished[0][1])
-                    cur = again
                     carry = {e: f.vals for _, e, f, _ in polished}
                     if not accepted:
                         share, counts, (rho, lag), baseline = disagreement(cur)
@@ -1970,7 +1976,6 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             again = better_basin(best_v, cur, cur_sse)
             if again is not None:
                 moved(again, best_c.effect)
-                cur = again
                 refits += 1
                 carry = {c.effect: v for c, v, _ in cands if not c.replaces}
                 carry.update({c.effect: v for c, v, _ in gcands})  # the global fits start their local fits next round
@@ -2051,8 +2056,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         cur = best_v
         # the new model's stick rule is held by its friction effect (a later effect may have chosen
         # again); every other candidate chooses again in the next round, beside the new effect
-        friction_rule.clear()
-        friction_rule.update({e: {"nb": cur["nb"], "dv": cur.get("dv", dv)} for e in accepted if e in _EXCLUSIVE and "nb" in cur})
+        hold_rule(cur)
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"

@@ -14,7 +14,8 @@ times, in the same run, the compiled simulator against the pure-Python one of is
 
 Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/bench_reconcile.py``; the 60 s
 version of any unseen record, one at a time: ``.venv/bin/python -m tests.bench.bench_reconcile
-DRAW:I ...`` (``I`` from 0, as in ``accuracy_reconcile.py``; :func:`main`).
+DRAW:I ...`` (``I`` from 0; ``DRAW:all`` and ``DRAW:pairs`` too, as in ``accuracy_reconcile.select``;
+:func:`main`).
 """
 
 import os
@@ -29,7 +30,7 @@ from models.reconcile import ReconcileConfig, reconcile
 from models.valve_effects import EffectValve, hidden_record, simulate_effects
 from models.valve_tests import isa_steps, square
 
-from .accuracy_reconcile import indep_cases, make_record
+from .accuracy_reconcile import indep_cases, make_record, select
 from .conftest import machine_note
 
 
@@ -128,9 +129,8 @@ def main(argv: list[str] | None = None) -> None:
 
     rc._stribeck_search = counted
     print(f"machine: {machine_note()}")
-    for tag in sys.argv[1:] if argv is None else argv:
+    for tag, case in (tc for spec in (sys.argv[1:] if argv is None else argv) for tc in select(spec)):
         draw, _, idx = tag.partition(":")
-        case = indep_cases(int(draw))[int(idx)]
         t, p, x, sa = make_record(case, 60.0)
         calls.clear()
         t0, c0 = time.perf_counter(), _cpu()
