@@ -66,7 +66,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    the first step, every compatible pair is fitted added together from the force balances with
    both effects at once (:func:`_joint_starts`) and judged by the same tests, Bonferroni over
    the pairs (``pair_search``); a passing pair is reported as two steps.
-4. **The gap**: RMSE before/after each step on the whole record and per regime.
+4. **The gap**: RMSE before/after each step on the whole record and per regime, and the final
+   model's pressure-noise floor (:func:`pressure_floor`): what the recorded pressure's noise
+   alone moves its stem by, so that a misfit can be read against what even a right model would
+   leave.
 
 Pure functions over arrays: no I/O, no clock, no plotting.
 """
@@ -2117,10 +2120,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # runaway turns the newton the smoother leaves into milliseconds: unseen Stribeck records
         # whose truth reads 2-18 times the noise; ACCURACY.md, issue 8, session 30)
         med, top = float(np.median(floor)), float(np.max(floor))
+        right = math.sqrt(sigma**2 + top**2)
+        held = _score(_residuals(cur, recs, cfg, dv), recs)
         message += (f"; the recorded pressure's noise alone moves this model's stem by {med * 1e6:.2f} µm RMS "
                     f"(median of {floor.size} bootstrap draws; up to {top * 1e6:.2f} µm), so were the model right "
-                    f"it would read about {math.sqrt(sigma**2 + med**2) * 1e6:.2f} µm (up to "
-                    f"{math.sqrt(sigma**2 + top**2) * 1e6:.2f} µm)")
+                    f"it would read about {math.sqrt(sigma**2 + med**2) * 1e6:.2f} µm (up to {right * 1e6:.2f} µm): "
+                    + ("the misfit is within what the pressure noise explains, so it need not be a missing effect"
+                       if math.sqrt(held.mse_h) <= right else "more than the pressure noise explains"))
     if len(_stop_directions(recs)) == 1:
         message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
                     "the other (F_c started at the least that held the stem through its rests) and a deadband cannot show")
