@@ -81,14 +81,6 @@ def test_a_misfit_no_candidate_explains_is_not_reported_as_nothing_missing():
     assert r.message.endswith("more than the pressure noise explains")
 
 
-def _ramps(seed: int, duration: float = 30.0) -> Excitation:
-    """Straight pressure ramps between random levels (20–70 %) every 1–5 s."""
-    rng = np.random.default_rng(seed)
-    knots_t = np.r_[0.0, np.cumsum(rng.uniform(1.0, 5.0, 40))]
-    t = 1e-3 * np.arange(int(duration / 1e-3))
-    return Excitation("ramps", t, pct_to_pa(np.interp(t, knots_t, rng.uniform(20.0, 70.0, knots_t.size))), 1e-3)
-
-
 def test_the_pressure_floor_predicts_what_the_recorded_pressures_noise_does_to_the_truth():
     # planted truth: a Stribeck valve (F_s = 1.5 F_c, v_s 5 mm/s) on ramps, driven by the noiseless
     # pressure and recorded with 200 Pa of pressure noise.  Simulated from that noiseless pressure,
@@ -96,10 +88,12 @@ def test_the_pressure_floor_predicts_what_the_recorded_pressures_noise_does_to_t
     # Stribeck runaway turns the newton the smoother leaves into milliseconds).  The bootstrap
     # floor never sees the noiseless pressure; its draws must be distributed like the truth's
     # realised excess over four noise draws of the record (medians within a factor 1.5)
+    from tests.bench.accuracy_reconcile import ramps
+
     cfg = ReconcileConfig()
     realised, boot = [], []
     for seed in (1, 2, 3, 4):
-        rec = hidden_record(PRESETS["low"], _ramps(3), {"stribeck": (1.5, 0.005)}, seed=seed)
+        rec = hidden_record(PRESETS["low"], ramps(3, 30.0), {"stribeck": (1.5, 0.005)}, seed=seed)
         r = prepare(ValveData(rec.t, rec.p, rec.x, "ramps"), cfg.block_s, cfg.sa)
         v = rec.valve
         truth = {"k": v.k, "fc": v.fc, "fv": v.fv, "bias": v.bias, "dv": v.dv, "nb": 0.0, "dfs": v.fs - v.fc, "vs": v.vs}
@@ -115,7 +109,7 @@ def test_the_pressure_floor_predicts_what_the_recorded_pressures_noise_does_to_t
     assert np.median(realised) > 1.0  # the truth reads above 1.4 times the noise
     assert 1 / 1.5 < np.median(boot) / np.median(realised) < 1.5
     # a valve without Stribeck friction on the same ramps hardly feels the pressure noise
-    rec = hidden_record(PRESETS["low"], _ramps(3), {}, seed=1)
+    rec = hidden_record(PRESETS["low"], ramps(3, 30.0), {}, seed=1)
     r = prepare(ValveData(rec.t, rec.p, rec.x, "ramps"), cfg.block_s, cfg.sa)
     v = rec.valve
     clean = {"k": v.k, "fc": v.fc, "fv": v.fv, "bias": v.bias, "dv": v.dv, "nb": 0.0}
