@@ -66,7 +66,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    the first step, every compatible pair is fitted added together from the force balances with
    both effects at once (:func:`_joint_starts`) and judged by the same tests, Bonferroni over
    the pairs (``pair_search``); a passing pair is reported as two steps.
-4. **The gap**: RMSE before/after each step on the whole record and per regime.
+4. **The gap**: RMSE before/after each step on the whole record and per regime, and the final
+   model's pressure-noise floor (:func:`pressure_floor`): what the recorded pressure's noise
+   alone moves its stem by, so that a misfit can be read against what even a right model would
+   leave.
 
 Pure functions over arrays: no I/O, no clock, no plotting.
 """
@@ -672,6 +675,38 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     return vals_of(out.x), float(out.fun)
 
 
+def pressure_floor(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
+                   draws: int = 8, seed: int = 0) -> np.ndarray:
+    """Position error that the recorded pressure's noise alone leaves in the model ``vals``: RMS
+    over the record(s) in each of ``draws`` bootstrap draws, m.
+
+    The model is driven by the smoothed recorded pressure (:func:`smooth_pressure`), which keeps
+    some of the recording's white noise.  How far that moves the simulated stem is estimated by a
+    parametric bootstrap (Efron & Tibshirani 1993, ch. 6): the smoothed pressure stands in for
+    the true one, white noise of the record's own level (:func:`models.identification.noise_std`)
+    is added to it and smoothed again, and the stem simulated from that copy is compared with the
+    stem simulated from the smoothed pressure (the re-seats at the measured rests are the same in
+    every simulation).  A model whose breakaways run away down a Stribeck curve (eq. (2) with
+    ``F_s > F_c``) or that rests on the edge of sticking turns force errors of a newton into timing
+    errors of milliseconds (ACCURACY.md, issue 8, sessions 20 and 30), so even a record's own truth
+    can read several times the position noise: were the model right, its error would be about
+    ``√(σ_x² + floor²)`` for a floor drawn like these.  The draws spread widely where a few
+    breakaways sit on a knife edge (one draw flips one, another does not), so report their median
+    and range, not a mean.  Seeded: the same inputs give the same draws."""
+    rng = np.random.default_rng(seed)
+    base = [_residuals(vals, [r], cfg, dv)[0] for r in recs]
+    sp = [noise_std(np.asarray(r.data.p, float)) for r in recs]
+    n = sum(r.x.size for r in recs)
+    out = np.empty(draws)
+    for j in range(draws):
+        d2 = 0.0
+        for r, e0, s in zip(recs, base, sp):
+            pk = smooth_pressure(r.p_smooth + s * rng.standard_normal(r.p_smooth.size), r.dt)
+            d2 += float(np.sum((_residuals(vals, [replace(r, p_smooth=pk)], cfg, dv)[0] - e0) ** 2))
+        out[j] = math.sqrt(d2 / n)
+    return out
+
+
 def _decimate(r: Prepared, q: int) -> Prepared:
     """The record in blocks of ``q`` samples (the last ``len % q`` dropped), ``dt`` times ``q``: a
     coarse model of it for the global search (:func:`_global_fit`), about ``q`` times cheaper to
@@ -1265,10 +1300,18 @@ class Reconciliation:
     message: str = ""
     split_named: dict[str, int] = field(default_factory=dict)  # effect -> draws naming it (ReconcileConfig.split_check)
     split_draws: int = 1
+    #: RMS position error the recorded pressure's noise alone leaves in the final model, per
+    #: bootstrap draw (:func:`pressure_floor`)
+    pressure_floor_draws: tuple[float, ...] = ()
 
     @property
     def effects(self) -> list[str]:
         return [s.effect for s in self.steps]
+
+    @property
+    def pressure_floor(self) -> float:
+        """The median of :attr:`pressure_floor_draws`, m."""
+        return float(np.median(self.pressure_floor_draws)) if self.pressure_floor_draws else 0.0
 
     @property
     def final(self) -> Step:
@@ -1289,6 +1332,8 @@ class Reconciliation:
             "effects": self.effects,
             "final_rmse_m": self.final.rmse,
             "noise_floor_m": self.noise_floor,
+            "pressure_floor_m": self.pressure_floor,
+            "pressure_floor_draws_m": list(self.pressure_floor_draws),
             "message": self.message,
             "split_check": {"draws": self.split_draws, "named": self.split_named},
             "regime_share_of_baseline_error": self.regime_share,
@@ -2069,11 +2114,24 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             baseline = again
     if not accepted and "no missing" not in message and not misses:
         message = "no missing effect found: " + message
+    floor = pressure_floor(cur, recs, cfg, dv)
+    if misses:
+        # how much of the misfit the recorded pressure's noise alone may explain (a Stribeck
+        # runaway turns the newton the smoother leaves into milliseconds: unseen Stribeck records
+        # whose truth reads 2-18 times the noise; ACCURACY.md, issue 8, session 30)
+        med, top = float(np.median(floor)), float(np.max(floor))
+        right = math.sqrt(sigma**2 + top**2)
+        held = _score(_residuals(cur, recs, cfg, dv), recs)
+        message += (f"; the recorded pressure's noise alone moves this model's stem by {med * 1e6:.2f} µm RMS "
+                    f"(median of {floor.size} bootstrap draws; up to {top * 1e6:.2f} µm), so were the model right "
+                    f"it would read about {math.sqrt(sigma**2 + med**2) * 1e6:.2f} µm (up to {right * 1e6:.2f} µm): "
+                    + ("the misfit is within what the pressure noise explains, so it need not be a missing effect"
+                       if math.sqrt(held.mse_h) <= right else "more than the pressure noise explains"))
     if len(_stop_directions(recs)) == 1:
         message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
                     "the other (F_c started at the least that held the stem through its rests) and a deadband cannot show")
     return Reconciliation(
         baseline=baseline, steps=tuple(steps), rounds=tuple(rounds), noise_floor=sigma,
         regime_share=share, regime_samples=counts, xcorr={"peak": rho, "lag_s": lag},
-        records=tuple(recs), message=message,
+        records=tuple(recs), message=message, pressure_floor_draws=tuple(float(f) for f in floor),
     )

@@ -82,6 +82,9 @@ def _lines(r: Reconciliation) -> list[str]:
         out.append("  params: " + ", ".join(f"{k} {v:.5g}" for k, v in s.params.items()))
     out.append(f"effects: {_named(r)} — {r.message}")
     out.append(f"RMSE: baseline {_um(r.baseline.rmse)} -> final {_um(r.final.rmse)} (noise {_um(r.noise_floor)})")
+    out.append(f"pressure-noise floor of the final model (what the recorded pressure's noise alone moves its stem, "
+               f"RMS, median of {len(r.pressure_floor_draws)} bootstrap draws): {_um(r.pressure_floor)}, up to "
+               f"{_um(max(r.pressure_floor_draws, default=0.0))}")
     return out
 
 
