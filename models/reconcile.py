@@ -2118,15 +2118,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     if misses:
         # how much of the misfit the recorded pressure's noise alone may explain (a Stribeck
         # runaway turns the newton the smoother leaves into milliseconds: unseen Stribeck records
-        # whose truth reads 2-18 times the noise; ACCURACY.md, issue 8, session 30)
+        # whose truth reads 2-18 times the noise; ACCURACY.md, issue 8, session 30).  The search
+        # stopped in the round that scored ``cur``: its held-out RMSE is ``ratio`` times the noise
         med, top = float(np.median(floor)), float(np.max(floor))
         right = math.sqrt(sigma**2 + top**2)
-        held = _score(_residuals(cur, recs, cfg, dv), recs)
         message += (f"; the recorded pressure's noise alone moves this model's stem by {med * 1e6:.2f} µm RMS "
                     f"(median of {floor.size} bootstrap draws; up to {top * 1e6:.2f} µm), so were the model right "
                     f"it would read about {math.sqrt(sigma**2 + med**2) * 1e6:.2f} µm (up to {right * 1e6:.2f} µm): "
                     + ("the misfit is within what the pressure noise explains, so it need not be a missing effect"
-                       if math.sqrt(held.mse_h) <= right else "more than the pressure noise explains"))
+                       if ratio * sigma <= right else "more than the pressure noise explains"))
     if len(_stop_directions(recs)) == 1:
         message += ("; the stem came to rest after slides in one direction only, so F_c and the bias trade one for "
                     "the other (F_c started at the least that held the stem through its rests) and a deadband cannot show")
