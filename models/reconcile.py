@@ -2175,7 +2175,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             j = accepted.index(e)
             del accepted[j], steps[j]
         free = tuple(n for n in free if n in cur)
-        hold_rule(cur)
+        # the final model without them, refitted on the training blocks (its held-out RMSE is then a fit's)
+        cur = _fit(cur, free, recs, cfg, dv).vals
         note = "; " + ", ".join(e for e, _ in gone) + " taken out after the search"
         for m in range(min(first, len(accepted) - 1), len(accepted)) if accepted else ():  # from the first gone (or the new last)
             names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
