@@ -67,8 +67,10 @@ missing effect explains it, and how much does adding it shrink the gap.
    both effects at once (:func:`_joint_starts`) and judged by the same tests, Bonferroni over
    the pairs (``pair_search``); a passing pair is reported as two steps.
    After the search, :func:`backward_eliminate` takes out of the final model every accepted
-   effect the held-out BIC no longer favours beside the later ones (one at a time, nothing
-   refitted: the backward half of a stepwise selection), and the steps after it are refitted.
+   effect finer than the records resolve (a lag or dead time under one sample, a deadband or a
+   friction jump under the position noise: :func:`_resolution`) and every one the held-out BIC
+   no longer favours beside the later ones (one at a time, nothing refitted: the backward half
+   of a stepwise selection); the final model is refitted without them.
 4. **The gap**: RMSE before/after each step on the whole record and per regime, and the final
    model's pressure-noise floor (:func:`pressure_floor`): what the recorded pressure's noise
    alone moves its stem by, so that a misfit can be read against what even a right model would
@@ -1435,12 +1437,29 @@ def _n_eff(res: list[np.ndarray], recs: list[Prepared], cfg: ReconcileConfig, n_
     return max(2.0, n_h / _tau_int(held, int(10 * cfg.block_s / recs[0].dt)))
 
 
-def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Prepared], cfg: ReconcileConfig,
-                       dv: float, base_rule: dict[str, float]) -> tuple[dict[str, float], list[tuple[str, float]]]:
-    """Take out of the model ``vals`` (fitted on the training blocks, with ``effects``) every effect
-    the held-out blocks do not favour, one at a time, the least favoured first.
+def _resolution(vals: dict[str, float], effect: str, recs: list[Prepared]) -> float:
+    """How many times the smallest size the records resolve effect ``effect`` of the model ``vals``
+    has: a lag or a dead time in sampling periods, a deadband in position-noise standard
+    deviations, a friction effect's jump ``(F_s − F_c)/k`` (the stem travel it adds at a
+    breakaway) in them too.  Below 1 the effect is finer than the sampling or the noise: a model
+    may carry it, but the records cannot say it is there (a dead time of 0.4 ms at 1 ms
+    sampling, a slip jump of 0.6 N that moves the stem 4 µm against 12 µm of noise: unseen 125 #21,
+    a clean record; ACCURACY.md, issue 8, session 31)."""
+    dt, sx = min(r.dt for r in recs), min(r.sigma_x for r in recs)
+    if effect in ("slip_jump", "stribeck"):
+        return vals.get("dfs", 0.0) / (vals["k"] * sx)
+    name = _effect_names(effect)[0]
+    return vals.get(name, 0.0) / (sx if effect == "deadband" else dt)
 
-    An effect is favoured when the held-out BIC (the fold and effective sample size of the search's
+
+def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Prepared], cfg: ReconcileConfig,
+                       dv: float, base_rule: dict[str, float]) -> tuple[dict[str, float], list[tuple[str, str]]]:
+    """Take out of the model ``vals`` (fitted on the training blocks, with ``effects``) every effect
+    the records do not resolve or the held-out blocks do not favour, one at a time.
+
+    First every effect finer than the records resolve (:func:`_resolution` below 1), the finest
+    first.  Then the effects the held-out blocks do not favour, the least favoured first: an
+    effect is favoured when the held-out BIC (the fold and effective sample size of the search's
     tests; Schwarz 1978) of the model against the same model without it, nothing refitted, is
     positive.  Nothing is refitted: a refit of the rest could only favour taking it out further,
     so an effect this test takes out is not needed.  The forward search accepts an effect on its
@@ -1448,11 +1467,20 @@ def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Pr
     deadband fitted to 0 m beside a Stribeck friction): this is the backward half of a stepwise
     selection (Efroymson 1960).
 
-    Returns the model without the taken-out effects and, in the order taken out, each effect with
-    its held-out ΔBIC for keeping it (≤ 0)."""
+    Returns the model without the taken-out effects (each takes its parameters out, a friction
+    effect its stick rule too: :func:`_without`) and, in the order taken out, each effect with the
+    reason in words."""
     effects = list(effects)
-    out: list[tuple[str, float]] = []
+    out: list[tuple[str, str]] = []
     while effects:
+        size = {e: _resolution(vals, e, recs) for e in effects}
+        finest = min(effects, key=size.__getitem__)
+        if size[finest] < 1.0:
+            unit = {"actuator_lag": "the sampling period", "dead_time": "the sampling period"}.get(finest, "the position noise")
+            out.append((finest, f"finer than the records resolve ({size[finest]:.2f} × {unit})"))
+            vals = _without(vals, finest, base_rule)
+            effects.remove(finest)
+            continue
         res = _residuals(vals, recs, cfg, dv)
         sc = _score(res, recs)
         n_eff = _n_eff(res, recs, cfg, sc.n_h)
@@ -1464,7 +1492,8 @@ def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Pr
         worst = min(effects, key=lambda e: keep[e][0])
         if keep[worst][0] > 0:
             break
-        out.append((worst, keep[worst][0]))
+        out.append((worst, f"with the later effects the held-out blocks no longer favour it (ΔBIC "
+                           f"{keep[worst][0]:.1f} for keeping it, the rest of the model unchanged)"))
         vals = keep[worst][1]
         effects.remove(worst)
     return vals, out
@@ -2163,15 +2192,14 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
-    # backward elimination: an accepted effect that the later fits took back to (nearly) nothing
-    # leaves the final model (unseen 157 #3: a deadband refitted to 0 m and a dead time of 12 µs
-    # beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
+    # backward elimination: an accepted effect finer than the records resolve, or that the later
+    # fits took back to (nearly) nothing, leaves the final model (unseen 157 #3: a deadband refitted
+    # to 0 m and a dead time of 12 µs beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
     cur, gone = backward_eliminate(cur, accepted, recs, cfg, dv, base_rule)
     if gone:
         first = min(accepted.index(e) for e, _ in gone)
-        for e, dbic in gone:
-            message += (f"; {e} taken out of the final model: with the later effects the held-out blocks no longer "
-                        f"favour it (ΔBIC {dbic:.1f} for keeping it, the rest of the model unchanged)")
+        for e, why in gone:
+            message += f"; {e} taken out of the final model: {why}"
             j = accepted.index(e)
             del accepted[j], steps[j]
         free = tuple(n for n in free if n in cur)

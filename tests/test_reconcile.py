@@ -118,10 +118,9 @@ def test_the_pressure_floor_predicts_what_the_recorded_pressures_noise_does_to_t
     assert np.median(pressure_floor(clean, [r], cfg, 0.01 * r.speed_max)) < 0.5 * r.sigma_x
 
 
-def test_backward_elimination_takes_out_effects_of_size_zero_and_keeps_the_planted_ones():
+def test_backward_elimination_takes_out_unresolved_and_unneeded_effects_and_keeps_the_planted_ones():
     # planted truth: a slip jump (F_s = 1.4 F_c) and a deadband of 10 times the position noise on
-    # ramps.  The truth's own effects are favoured by the held-out blocks; a dead time and a lag
-    # of size zero beside them change nothing and are taken out, the model left as it was
+    # ramps.  The truth's own effects are favoured by the held-out blocks and kept
     from tests.bench.accuracy_reconcile import ramps
 
     cfg = ReconcileConfig()
@@ -132,15 +131,23 @@ def test_backward_elimination_takes_out_effects_of_size_zero_and_keeps_the_plant
              "deadband": v.deadband}
     dv, rule = 0.01 * r.speed_max, {"nb": 0.0}
     assert backward_eliminate(truth, ["slip_jump", "deadband"], [r], cfg, dv, rule) == (truth, [])
-    padded = {**truth, "theta": 0.0, "tau": 0.0}
+    # a dead time of 0.4 sampling periods and a lag of none beside them are finer than a 1 ms record
+    # resolves: taken out, whatever they do to the fit, and the model is left as it was
+    padded = {**truth, "theta": 0.4 * r.dt, "tau": 0.0}
     vals, gone = backward_eliminate(padded, ["slip_jump", "dead_time", "deadband", "actuator_lag"], [r], cfg, dv, rule)
     assert vals == truth
-    assert sorted(e for e, _ in gone) == ["actuator_lag", "dead_time"] and all(d <= 0 for _, d in gone)
-    # on the same valve without the deadband, the truth carrying one of a hundredth of the noise loses it
+    assert sorted(e for e, _ in gone) == ["actuator_lag", "dead_time"]
+    assert all(why.startswith("finer than the records resolve") for _, why in gone)
+    # on the same valve without the deadband, the truth carrying a deadband of 3 × the noise, or a
+    # dead time of 5 samples, resolvable but not in the record: the held-out blocks do not favour
+    # either, and each is taken out
     rec = hidden_record(PRESETS["low"], ramps(3, 30.0), {"slip_jump": (1.4,)}, seed=1)
     r = prepare(ValveData(rec.t, rec.p, rec.x, "ramps"), cfg.block_s, cfg.sa)
-    vals, gone = backward_eliminate({**truth, "deadband": 1e-7}, ["slip_jump", "deadband"], [r], cfg, dv, rule)
-    assert [e for e, _ in gone] == ["deadband"] and "deadband" not in vals and "dfs" in vals
+    for e, extra in (("deadband", {"deadband": 3 * r.sigma_x}), ("dead_time", {"theta": 5 * r.dt})):
+        clean = {n: x for n, x in truth.items() if n != "deadband"}
+        vals, gone = backward_eliminate({**clean, **extra}, ["slip_jump", e], [r], cfg, dv, rule)
+        assert [g for g, _ in gone] == [e] and vals == clean
+        assert gone[0][1].startswith("with the later effects the held-out blocks no longer favour it")
 
 
 def test_a_pair_without_friction_effects_starts_without_static_friction():
