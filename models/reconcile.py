@@ -2205,6 +2205,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         free = tuple(n for n in free if n in cur)
         # the final model without them, refitted on the training blocks (its held-out RMSE is then a fit's)
         cur = _fit(cur, free, recs, cfg, dv).vals
+        ratio = math.sqrt(_score(_residuals(cur, recs, cfg, dv), recs).mse_h) / sigma
+        if ratio >= 2.0 and not misses:  # what they brought within the noise is not "nothing missing"
+            message += (f"; without them the model still misses the data: held-out RMSE {ratio * sigma * 1e6:.2f} µm "
+                        f"({ratio:.1f} × the noise)")
+            misses = True
         note = "; " + ", ".join(e for e, _ in gone) + " taken out after the search"
         for m in range(min(first, len(accepted) - 1), len(accepted)) if accepted else ():  # from the first gone (or the new last)
             names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
