@@ -212,6 +212,18 @@ def test_effects_the_later_steps_take_to_nothing_leave_the_final_model():
 
 
 @pytest.mark.slow
+def test_effects_finer_than_the_record_resolves_are_not_named():
+    # unseen 125 #21: a clean record (random steps, nothing hidden).  The search accepts a dead time
+    # of 0.4 ms (under one 1 ms sample) and a slip jump of 0.6 N (a stem jump of a third of the
+    # position noise): neither can be told from nothing on this record, and nothing is named
+    data, cfg = _unseen("125:20")
+    r = reconcile(data, config=cfg)
+    assert r.effects == []
+    assert r.message.startswith("no missing effect found")
+    assert "finer than the records resolve" in r.message
+
+
+@pytest.mark.slow
 def test_an_effect_fitted_at_size_zero_is_not_named():
     # unseen draw 89, record 3 of the accuracy bench: a slip jump of 1.26 on a sine sweep behind a
     # 0.3 s V/P lag (planted truth: the slip jump alone).  A deadband passed first (it halves F_c);
