@@ -21,6 +21,11 @@ Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.
 ``LOOPWATCH_RECONCILE_INDEP_SEEDS``: the independent draws, default ``20261122,7``;
 ``LOOPWATCH_RECONCILE_INDEP_SUB``: sub-steps per sample of the independent simulator, default 32 —
 4 reproduces the reports before session 5).
+
+Chosen records from the command line: ``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT]
+[--against OLD]`` (:func:`main`); a path ending in ``.gz`` is read and written through gzip.
+``tests/bench/results/`` keeps whole runs to compare against (``reconcile_119-161_s31.json.gz``:
+draws 119–161 on the code of session 31; ACCURACY.md, issue 8).
 """
 
 from __future__ import annotations
