@@ -21,6 +21,11 @@ Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.
 ``LOOPWATCH_RECONCILE_INDEP_SEEDS``: the independent draws, default ``20261122,7``;
 ``LOOPWATCH_RECONCILE_INDEP_SUB``: sub-steps per sample of the independent simulator, default 32 —
 4 reproduces the reports before session 5).
+
+Chosen records from the command line: ``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT]
+[--against OLD]`` (:func:`main`); a path ending in ``.gz`` is read and written through gzip.
+``tests/bench/results/`` keeps whole runs to compare against (``reconcile_119-161_s31.json.gz``:
+draws 119–161 on the code of session 31; ACCURACY.md, issue 8).
 """
 
 from __future__ import annotations
@@ -518,6 +523,14 @@ def _truth_tagged(item: tuple[str, dict]) -> dict:
     return {"tag": tag, **case, "truth": r, "error": err}
 
 
+def _open(path: str, mode: str):
+    """``path`` opened as text, through gzip where it ends in ``.gz`` (the runs kept in
+    ``tests/bench/results/``)."""
+    import gzip
+
+    return gzip.open(path, mode + "t") if path.endswith(".gz") else open(path, mode)
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT] [--workers N] [--against A.json] [--global-search]``:
     run chosen records, print one line each and the report per source, save the results, and
@@ -548,7 +561,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{v.size} records: median {np.median(v):.3f}; above 1.1 × noise {np.sum(v > 1.1)}, above 1.5 × "
               f"{np.sum(v > 1.5)}, above 2 × {np.sum(v > 2)}; total {time.perf_counter() - t0:.0f} s")
         if a.json:
-            with open(a.json, "w") as fh:
+            with _open(a.json, "w") as fh:
                 json.dump(res, fh, default=float)
         return
     res = []
@@ -559,7 +572,7 @@ def main(argv: list[str] | None = None) -> None:
                   f"final {r['final'] * 1e6:.1f} noise {r['noise'] * 1e6:.1f} µm {r['seconds']:.0f} s {r['error']}",
                   flush=True)
             if a.json:
-                with open(a.json, "w") as fh:
+                with _open(a.json, "w") as fh:
                     json.dump(res, fh, default=float)
     for src in dict.fromkeys(r["tag"].split(":")[0] for r in res):
         report(f"source {src}", [r for r in res if r["tag"].split(":")[0] == src])
@@ -567,7 +580,7 @@ def main(argv: list[str] | None = None) -> None:
     if len({r["tag"].split(":")[0] for r in indep}) > 1:
         report("all independent records above", indep)
     if a.against:
-        with open(a.against) as fh:
+        with _open(a.against, "r") as fh:
             old = {r["tag"]: r for r in json.load(fh)}
         print(f"\nverdicts that differ from {a.against}:")
         for r in res:
