@@ -229,7 +229,12 @@ class ReconcileConfig:
         named instead).  Measured on the 528 unseen records of the lines (ACCURACY.md and
         BENCHMARKS.md, issue 8, session 26): both effects found in 59 of 115 pairs against 55, none
         lost; above-noise singles 214 of 229 named first against 215; clean records unchanged; the
-        slowest 60 s record 46 → 52 s.
+        slowest 60 s record 46 → 52 s.  Since session 32 a look-ahead pair's second-fold fit also
+        starts from its first-fold fit (unseen 135 #25: the pair's first fold at 3.3 × the noise,
+        its second fold's multi-start alone at 20 ×).  Measured on the 199 records of draws
+        119–161 where the look-ahead can run: above-noise singles 212 → 213 of 227, clean 171 →
+        172 of 176, pairs 52 of 110 unchanged, final ≤ 0.5 × baseline 273 → 275 of 316, records
+        naming an effect not hidden 43 → 45.
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
