@@ -229,7 +229,12 @@ class ReconcileConfig:
         named instead).  Measured on the 528 unseen records of the lines (ACCURACY.md and
         BENCHMARKS.md, issue 8, session 26): both effects found in 59 of 115 pairs against 55, none
         lost; above-noise singles 214 of 229 named first against 215; clean records unchanged; the
-        slowest 60 s record 46 → 52 s.
+        slowest 60 s record 46 → 52 s.  Since session 32 a look-ahead pair's second-fold fit also
+        starts from its first-fold fit (unseen 135 #25: the pair's first fold at 3.3 × the noise,
+        its second fold's multi-start alone at 20 ×).  Measured on the 199 records of draws
+        119–161 where the look-ahead can run: above-noise singles 212 → 213 of 227, clean 171 →
+        172 of 176, pairs 52 of 110 unchanged, final ≤ 0.5 × baseline 273 → 275 of 316, records
+        naming an effect not hidden 43 → 45.
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
@@ -1752,9 +1757,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         return fit, replaces, with_, fit_free
 
     def pair_fit(a: str, b: str, base: dict[str, float], base_sse: float, fold: str,
-                 memo: dict) -> _Fit | None:
+                 memo: dict, extra: tuple[dict[str, float], ...] = ()) -> _Fit | None:
         """Effects ``a`` and ``b`` added together to ``base`` and fitted on ``fold`` from the joint
-        force-balance starts (:func:`_joint_starts`): short fits, the two best refined; None when
+        force-balance starts (:func:`_joint_starts`) and the starts ``extra`` (the pair's fit on the
+        other fold, ``ReconcileConfig.fold_start``): short fits, the two best refined; None when
         the fit is no better than ``base`` on ``fold``."""
         key = ("pair", a, b)
         if key not in memo:
@@ -1766,8 +1772,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             else:
                 rules = [{"dv": base.get("dv", dv)}]
             names = _effect_names(a) + _effect_names(b)
-            shorts = sorted(short_fits([{**base, **g} for g in _joint_starts((a, b), recs, cfg, rules)], free + names, fold),
-                            key=lambda f: f.sse_train)
+            starts = [{**base, **g} for g in _joint_starts((a, b), recs, cfg, rules)] + [dict(v) for v in extra]
+            shorts = sorted(short_fits(starts, free + names, fold), key=lambda f: f.sse_train)
             fit = None
             if shorts:
                 fit = refine(shorts[:2], free + names, fold)
@@ -2026,8 +2032,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                     continue
                 p_add = n_params(a, "", "") + n_params(b, "", "")
 
-                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add):
-                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2)
+                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add, v1=fit.vals):
+                    # the second fold also starts from the first fold's fit, as a single candidate's does
+                    # (fold_start; unseen 135 #25, slip jump + dead time: the first fold's pair fit
+                    # at 3.3 x the noise, the second fold's multi-start alone at 20 x)
+                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2, (v1,) if cfg.fold_start else ())
                     return None if fit2 is None else (fit2.vals, b, p_add)
 
                 first, second = (a, b) if single_bic[a] >= single_bic[b] else (b, a)
