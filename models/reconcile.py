@@ -1772,7 +1772,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             else:
                 rules = [{"dv": base.get("dv", dv)}]
             names = _effect_names(a) + _effect_names(b)
-            starts = [{**base, **g} for g in _joint_starts((a, b), recs, cfg, rules)] + [dict(v) for v in extra]
+            starts = [{**base, **g} for g in _joint_starts((a, b), recs, cfg, rules)] + list(extra)
             shorts = sorted(short_fits(starts, free + names, fold), key=lambda f: f.sse_train)
             fit = None
             if shorts:
