@@ -145,9 +145,13 @@ class ReconcileConfig:
     max_effects : at most this many effects are added.
     candidates : effects tried.
     max_nfev : evaluation budget of one least-squares fit.
-    cross_fit : two-fold cross-fit of the held-out test: a candidate that passes every test but
-        the significance on the held-out blocks is fitted again on the held-out blocks (and the
-        current model too) and scored on the training blocks; both folds' blocks are tested together.
+    cross_fit : two-fold cross-fit of the held-out test: a candidate that passes the BIC,
+        relevance and regime tests on the held-out blocks (significant there or not) is fitted again
+        on the held-out blocks (and the current model too) and scored on the training blocks; both
+        folds' blocks are tested together, and the pooled tests decide.  A candidate whose second
+        fold the held-out blocks do not pin down fails them even where its first fold fits at the
+        noise (unseen 155 #25: a dead time beside a slip jump, first fold 1.01 times the noise; the
+        second fold's F_s − F_c moved by 6 % and the training blocks read 14 times the noise).
     stick_band : width of the stick band of the fitted models, in standard deviations of the
         recorded-pressure noise left after smoothing, as a force (``b = stick_band·σ_p·S_a`` per
         sample, :func:`smooth_pressure` and :func:`models.valve_effects.simulate_effects`): the
@@ -999,9 +1003,7 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         return g_stop - d * fc, fc
 
     if not (k > 0 and fc >= 0):
-        allx = np.concatenate([r.x for r in recs])
-        allF = cfg.sa * np.concatenate([r.p_smooth for r in recs])
-        k = float(np.ptp(np.percentile(allF, [1, 99])) / max(np.ptp(np.percentile(allx, [1, 99])), 1e-9))
+        k = _span_spring(recs, cfg)
         kb, fc = friction_and_bias(k)
     if k_scale != 1.0:  # another spring, the rest re-derived from the stops
         k *= k_scale
@@ -1021,6 +1023,29 @@ def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0
         fv = max(float(rest_force @ R[:, 3]) / den, 0.0) if den > 0 else 0.0
     out = {"k": float(k), "fc": float(fc), "fv": float(fv), "bias": float(kb / k)}
     return {**out, "dfs": float(top - fc)} if at == "breakaway" or fast_slides else out
+
+
+def _span_spring(recs: list[Prepared], cfg: ReconcileConfig) -> float:
+    """The spring of :func:`_initial_baseline` where the stops cannot fix it: the force span over
+    the position span (1st to 99th percentile), the spring of a valve without friction.  With
+    stops in both directions it bounds ``k`` from above (``F_c ≥ 0`` in their balances), and a
+    valve whose friction holds it through most of the record may have a spring far below it
+    (see ``_BASE_K_SCALES_LOW``)."""
+    allx = np.concatenate([r.x for r in recs])
+    allF = cfg.sa * np.concatenate([r.p_smooth for r in recs])
+    return float(np.ptp(np.percentile(allF, [1, 99])) / max(np.ptp(np.percentile(allx, [1, 99])), 1e-9))
+
+
+#: springs of the baseline's multi-start, as multiples of the force balances' ``k``
+_BASE_K_SCALES = (0.7, 1.0, 1.4)
+#: and where the balances fall back on :func:`_span_spring` (stops at two force levels, or in one
+#: direction only, or a negative friction read), a second multi-start a decade below it in
+#: half-decade steps: that ``k`` is the frictionless one, and on an unseen record whose valve slid
+#: twice in 40 s (draw 149 #5, Stribeck friction with ``v_s`` ten times the record's fastest slide,
+#: so a Karnopp valve with ``F_c`` = ``F_s``) it was ten times the truth's; every start within
+#: 0.7–1.4 of it fitted a valve with no friction at 16.9 times the noise, a start at a tenth of it
+#: the truth at the noise (ACCURACY.md, issue 8, session 33)
+_BASE_K_SCALES_LOW = (0.1, 0.3)
 
 
 def _stops(r: Prepared, runs: list[tuple[int, int, int]]):
@@ -1582,14 +1607,36 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # band, or eq. (2) as written (see ReconcileConfig.stick_band); it is held by every later model
     # unless a later fit chooses again (a friction candidate, see _grid, or an effect beside an
     # accepted friction effect, see plain_fit)
-    fits = []
-    for rule in (_stick_rules(cfg, dv) if cfg.stick_band > 0 else [{}]):
-        starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
-                       max_nfev=cfg.max_nfev // 2) for ks in (0.7, 1.0, 1.4)]
-        start = min(starts, key=lambda f: f.sse_train).vals
-        start = _fit(start, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev).vals
-        fits.append(_fit(start, _BASE, recs, cfg, dv))
-    cur = min(fits, key=lambda f: f.sse_train).vals
+    def baseline_fit(scales: tuple[float, ...]) -> dict[str, float]:
+        fits = []
+        for rule in (_stick_rules(cfg, dv) if cfg.stick_band > 0 else [{}]):
+            starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
+                           max_nfev=cfg.max_nfev // 2) for ks in scales]
+            start = min(starts, key=lambda f: f.sse_train).vals
+            start = _fit(start, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev).vals
+            fits.append(_fit(start, _BASE, recs, cfg, dv))
+        return min(fits, key=lambda f: f.sse_train).vals
+
+    cur = baseline_fit(_BASE_K_SCALES)
+    if _initial_baseline(recs, cfg)["k"] == _span_spring(recs, cfg):
+        # the balances fell back on the frictionless spring: the multi-start is run again a decade
+        # below it, and that baseline replaces the first where it fits the whole record better.  The
+        # whole record, not the training blocks: a start far from the first basin can fit the training
+        # blocks and miss the held-out ones (unseen 157 #8: a start at a tenth of the frictionless
+        # spring, 2.3 times the noise on the training blocks, 19 times on the held-out ones); a choice
+        # that sees the held-out blocks only makes the baseline harder for a candidate to beat there
+        # by the relevance bar, as a swap must beat a candidate's own fit (min_gain of the noise
+        # power per sample): a baseline a hair better is no other model, and the search from it
+        # goes elsewhere (unseen 153 #25, slip jump + dead time: a second baseline as good as the
+        # first lost the dead time)
+        # Both are compared refitted on the whole record, as the baseline step reports them: the
+        # training fits alone can rank them the other way (unseen 157 #8, a lag: 2.9 and 2.5 times
+        # the noise on the whole record as fitted on the training blocks, 1.05 and 1.22 refitted)
+        low = baseline_fit(_BASE_K_SCALES_LOW)
+        whole = [sum(float(np.sum(e**2)) for e in _residuals(_fit(v, _BASE, recs, cfg, dv, use="all").vals, recs, cfg, dv))
+                 for v in (cur, low)]
+        if whole[1] < whole[0] - cfg.min_gain * noise_pow * n_all:
+            cur = low
     base_rule = {"nb": cur["nb"]} if "nb" in cur else {}
     free: tuple[str, ...] = _BASE
 
