@@ -24,8 +24,8 @@ Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.
 
 Chosen records from the command line: ``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT]
 [--against OLD]`` (:func:`main`); a path ending in ``.gz`` is read and written through gzip.
-``tests/bench/results/`` keeps whole runs to compare against (``reconcile_119-161_s33.json.gz``:
-draws 119–161 on the code of session 33; ACCURACY.md, issue 8).
+``tests/bench/results/`` keeps whole runs to compare against (``reconcile_119-165_s33.json.gz``:
+draws 119–165 on the code of session 33; ACCURACY.md, issue 8).
 """
 
 from __future__ import annotations
