@@ -1568,14 +1568,16 @@ def _split_seed(i: int) -> int:
     return i if i < _SPLIT_SEED else i + 1
 
 
+def _block_seconds(d: ValveData, cfg: ReconcileConfig) -> float:
+    """The training / held-out block of a record: ``cfg.block_s``, shorter where the record holds
+    fewer than 40 of them (at least 20 held-out blocks, so that the signed-rank test can reach its level)."""
+    return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
+
+
 def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, pool: _FitPool,
                split_seed: int = _SPLIT_SEED) -> Reconciliation:
-    # at least 20 held-out blocks per record, so that the signed-rank test can reach its level
-    def blk(d: ValveData) -> float:
-        return min(cfg.block_s, (float(d.t[-1]) - float(d.t[0])) / 40.0)
-
-    recs = [prepare(data, blk(data), cfg.sa, split_seed)] + (
-        [prepare(signature, blk(signature), cfg.sa, split_seed)] if signature is not None else [])
+    recs = [prepare(data, _block_seconds(data, cfg), cfg.sa, split_seed)] + (
+        [prepare(signature, _block_seconds(signature, cfg), cfg.sa, split_seed)] if signature is not None else [])
     dv = 0.01 * max(r.speed_max for r in recs)  # DV: 1 % of the largest speed (section 3)
     # the record's slow sliding speeds (10th percentile of the Appendix-A speed while moving)
     v_slow = min(float(np.percentile(np.abs(r.xd[r.state != 0]), 10)) if np.any(r.state != 0) else 0.0 for r in recs)

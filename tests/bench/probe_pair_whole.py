@@ -33,7 +33,8 @@ def probe(tag: str, case: dict) -> str:
     t, p, x, sa = make_record(case)
     cfg = ReconcileConfig(sa=sa)
     truth, _ = truth_values(case, cfg)
-    rec = rc.prepare(ValveData(t, p, x, "case"), min(cfg.block_s, (t[-1] - t[0]) / 40), cfg.sa)
+    data = ValveData(t, p, x, "case")
+    rec = rc.prepare(data, rc._block_seconds(data, cfg), cfg.sa)  # the workflow's blocks
     recs, dv = [rec], 0.01 * rec.speed_max
     truth["dv"] = dv
 
