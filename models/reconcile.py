@@ -254,7 +254,10 @@ class ReconcileConfig:
         instead lost singles the first search finds (unseen 129 #1: a slip jump that the second
         step brings within the noise was beaten in the first step by a Stribeck + lag pair that
         ends at 9 ×; ACCURACY.md, issue 8, session 35), so the second search only runs where the
-        first ends clearly above the noise: every other record is unchanged.
+        first ends clearly above the noise: every other record is unchanged.  Measured on the 672
+        records of unseen draws 119–165 (ACCURACY.md and BENCHMARKS.md, issue 8, session 35): it ran on
+        12 and was kept on 6; pairs 57 → 59 of 120, above-noise singles 226 → 227 of 241, one pair lost
+        (139 #26); the slowest 60 s record measured 31.9 → 57–59 s.
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
