@@ -1403,6 +1403,9 @@ class Reconciliation:
     #: RMS position error the recorded pressure's noise alone leaves in the final model, per
     #: bootstrap draw (:func:`pressure_floor`)
     pressure_floor_draws: tuple[float, ...] = ()
+    #: the second search with the pairs in the first step (ReconcileConfig.retry_pairs): "" where it
+    #: did not run, else "kept" or "not kept"
+    second_search: str = ""
 
     @property
     def effects(self) -> list[str]:
@@ -1436,6 +1439,7 @@ class Reconciliation:
             "pressure_floor_draws_m": list(self.pressure_floor_draws),
             "message": self.message,
             "split_check": {"draws": self.split_draws, "named": self.split_named},
+            "second_search": self.second_search or "not run",
             "regime_share_of_baseline_error": self.regime_share,
             "regime_samples": self.regime_samples,
             "residual_input_xcorr": self.xcorr,
@@ -1648,8 +1652,9 @@ def _searches(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig
     why = (f"; the search ended at {ratio:.1f} × the noise after a first step whose passing single effects each left "
            "most of the excess, so it was run again with the pairs of effects competing in the first step: ")
     if again.final.heldout_rmse < run.final.heldout_rmse:
-        return replace(again, message=again.message + why + f"{said(again)} kept against the first search's {said(run)}")
-    return replace(run, message=run.message + why + f"{said(again)} not kept")
+        return replace(again, second_search="kept",
+                       message=again.message + why + f"{said(again)} kept against the first search's {said(run)}")
+    return replace(run, second_search="not kept", message=run.message + why + f"{said(again)} not kept")
 
 
 def _split_seed(i: int) -> int:

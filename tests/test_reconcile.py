@@ -381,7 +381,7 @@ def test_a_search_that_ends_above_the_noise_after_a_weak_first_step_is_run_again
     r = reconcile(data, config=cfg)
     assert set(r.effects) == {"slip_jump", "dead_time"}  # the planted pair
     assert r.final.rmse < 1.5 * r.noise_floor and r.final.heldout_rmse < first.final.heldout_rmse
-    assert "run again with the pairs" in r.message and " kept against" in r.message
+    assert "run again with the pairs" in r.message and " kept against" in r.message and r.second_search == "kept"
 
 
 @pytest.mark.slow
@@ -392,7 +392,7 @@ def test_a_search_that_ends_within_the_noise_is_not_run_again():
     data, cfg = _unseen("129:0")
     r = reconcile(data, config=cfg)
     assert r.effects == ["slip_jump"] and r.final.heldout_rmse < 2 * r.noise_floor
-    assert "run again" not in r.message
+    assert "run again" not in r.message and r.second_search == ""
 
 
 def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_blocks_better(monkeypatch):
@@ -419,13 +419,16 @@ def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_bl
     low, high, better = result(["a"], 2.9, "low"), result(["a"], 6.0, "high"), result(["b", "c"], 1.2, "better")
     worse = result(["d"], 7.0, "worse")
     assert case(low, True, better) == (low, [False])  # within twice the noise: never again
+    assert low.second_search == "" and low.as_dict()["second_search"] == "not run"
     assert case(high, False, better) == (high, [False])  # a first step that was not weak: never again
     r, calls = case(high, True, better)
     assert calls == [False, True] and r.effects == ["b", "c"] and r.message.startswith("better")
+    assert r.second_search == "kept" and r.as_dict()["second_search"] == "kept"
     assert "b, c (held-out RMSE 1200000.00 µm, 0.2 × the noise on the whole record) kept" in r.message
     assert "first search's a (held-out RMSE 6000000.00 µm, 5.0 ×" in r.message
     r, calls = case(high, True, worse)
     assert calls == [False, True] and r.effects == ["a"] and r.message.startswith("high") and "not kept" in r.message
+    assert r.second_search == "not kept"
 
 
 def test_cli_global_search_flag(tmp_path):

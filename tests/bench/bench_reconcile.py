@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> None:
     """``python -m tests.bench.bench_reconcile DRAW:I ...``: the 60 s version of each unseen record
     (same valve, hidden effects, noise and seed; a 60 s excitation) reconciled alone, one after
     the other: wall and CPU time, the Stribeck searches made (:func:`models.reconcile._stribeck_search`)
-    and the time in them, the effects named."""
+    and the time in them, whether the second search ran (``ReconcileConfig.retry_pairs``), the effects named."""
     import sys
 
     from models import reconcile as rc
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> None:
         dt, cpu = time.perf_counter() - t0, _cpu() - c0
         print(f"{tag} ({draw} #{int(idx) + 1}, {case['exc']}, hidden {'+'.join(case['hidden']) or 'none'}): {t.size} "
               f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {len(calls)} Stribeck "
-              f"searches ({sum(calls):.1f} s), effects {r.effects}", flush=True)
+              f"searches ({sum(calls):.1f} s), second search {r.second_search or 'not run'}, effects {r.effects}", flush=True)
 
 
 if __name__ == "__main__":
