@@ -797,17 +797,21 @@ def _memo_key(*parts) -> tuple:
     return tuple(tuple(sorted(p.items())) if isinstance(p, dict) else p for p in parts)
 
 
+def _fit_key(vals0: dict[str, float], free: tuple[str, ...], use: str, max_nfev: int | None, stride_s: float) -> tuple:
+    """The :data:`_MEMO` key of a fit: everything it depends on besides the draw's records."""
+    return _memo_key("fit", vals0, tuple(free), use, max_nfev, stride_s)
+
+
 def _fit(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
          use: str = "train", max_nfev: int | None = None, stride_s: float = 0.004) -> _Fit:
     """:func:`_fit_once`, taken from :data:`_MEMO` where the same fit was made before."""
     memo = _MEMO.get()
     if memo is None:
         return _fit_once(vals0, free, recs, cfg, dv, use, max_nfev, stride_s)
-    key = _memo_key("fit", vals0, tuple(free), use, max_nfev, stride_s)
+    key = _fit_key(vals0, free, use, max_nfev, stride_s)
     if key not in memo:
         memo[key] = _fit_once(vals0, free, recs, cfg, dv, use, max_nfev, stride_s)
-    hit = memo[key]
-    return _Fit(dict(hit.vals), hit.sse_train)
+    return _Fit(dict(memo[key].vals), memo[key].sse_train)  # a copy: callers may change their fit
 
 
 def _fit_once(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
@@ -909,7 +913,7 @@ class _FitPool:
         each task ``(vals, names, use, max_nfev, stride_s)``, in order."""
         memo = _MEMO.get()
         if memo is not None:  # the fits made before are taken from the memo, the others made here
-            keys = [_memo_key("fit", v, tuple(n), u, m, s) for v, n, u, m, s in tasks]
+            keys = [_fit_key(*t) for t in tasks]
             new = {k: t for k, t in zip(keys, tasks) if k not in memo}  # each new fit once
             memo.update(zip(new, self._fits(list(new.values()), recs, cfg, dv)))
             return [_Fit(dict(memo[k].vals), memo[k].sse_train) for k in keys]
@@ -1629,21 +1633,17 @@ def _search(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, 
     takes the fits the first made from :data:`_MEMO`."""
     token = _MEMO.set({})
     try:
-        return _searches(data, signature, cfg, split_seed)
+        with _FitPool(cfg.threads) as pool:
+            run, weak = _reconcile(data, signature, cfg, pool, split_seed)
+        # the final model fitted on the whole record still misses it (a held-out RMSE above twice the
+        # noise with the whole-record fit within it is the split's doing, not a missing effect)
+        ratio = run.final.rmse / run.noise_floor
+        if not (weak and ratio >= 2.0 and cfg.retry_pairs and cfg.pair_search and cfg.max_effects >= 2):
+            return run
+        with _FitPool(cfg.threads) as pool:
+            again, _ = _reconcile(data, signature, cfg, pool, split_seed, weak_pairs=True)
     finally:
         _MEMO.reset(token)
-
-
-def _searches(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, split_seed: int) -> Reconciliation:
-    with _FitPool(cfg.threads) as pool:
-        run, weak = _reconcile(data, signature, cfg, pool, split_seed)
-    # the final model fitted on the whole record still misses it (a held-out RMSE above twice the
-    # noise with the whole-record fit within it is the split's doing, not a missing effect)
-    ratio = run.final.rmse / run.noise_floor
-    if not (weak and ratio >= 2.0 and cfg.retry_pairs and cfg.pair_search and cfg.max_effects >= 2):
-        return run
-    with _FitPool(cfg.threads) as pool:
-        again, _ = _reconcile(data, signature, cfg, pool, split_seed, weak_pairs=True)
 
     def said(r: Reconciliation) -> str:
         return (f"{', '.join(r.effects) or 'no effect'} (held-out RMSE {r.final.heldout_rmse * 1e6:.2f} µm, "
@@ -2171,8 +2171,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             c.heldout_rmse**2 >= 4 * noise_pow and c.heldout_rmse**2 - noise_pow > 0.5 * excess * noise_pow
             for c, _, _ in passing)
         weak_first = weak_first or weak
-        weak = weak and weak_pairs
-        if (not passing or weak) and not accepted and cfg.pair_search and cfg.max_effects >= 2:
+        beside = weak and weak_pairs  # the pairs run beside the passing singles and compete with them
+        if (not passing or beside) and not accepted and cfg.pair_search and cfg.max_effects >= 2:
             # look-ahead: every compatible pair added together, the same four tests (Bonferroni over
             # the pairs, both effects' parameters in the penalty).  A slip jump and a deadband can each
             # generalise worse than the baseline alone and fit at the noise together (unseen PRBS
@@ -2198,7 +2198,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                                       refit_pair), fit.vals, free + _effect_names(first) + _effect_names(second)))
             rounds[-1] += tuple(c for c, _, _ in pcands)
             passing = passing + [(c, v, f) for c, v, f in pcands if c.passed]
-            rivals = (list(cands) if weak else []) + pcands
+            rivals = (list(cands) if beside else []) + pcands
         gcands: list = []
         if not passing and cfg.global_search and rescues < 2 and excess >= cfg.global_excess:
             # the local search stops with the model still above the noise: every candidate added to

@@ -112,8 +112,8 @@ def test_split_check_cost():
 def main(argv: list[str] | None = None) -> None:
     """``python -m tests.bench.bench_reconcile DRAW:I ...``: the 60 s version of each unseen record
     (same valve, hidden effects, noise and seed; a 60 s excitation) reconciled alone, one after
-    the other: wall and CPU time, the Stribeck searches made (:func:`models.reconcile._stribeck_search`)
-    and the time in them, whether the second search ran (``ReconcileConfig.retry_pairs``), the effects named."""
+    the other: wall and CPU time, the calls to the Stribeck search (:func:`models.reconcile._stribeck_search`;
+    a second search's repeats of the first's are taken from its memo) and the time in them, whether the second search ran (``ReconcileConfig.retry_pairs``), the effects named."""
     import sys
 
     from models import reconcile as rc
