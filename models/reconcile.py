@@ -258,6 +258,23 @@ class ReconcileConfig:
         records of unseen draws 119–165 (ACCURACY.md and BENCHMARKS.md, issue 8, session 35): it ran on
         12 and was kept on 6; pairs 57 → 59 of 120, above-noise singles 226 → 227 of 241, one pair lost
         (139 #26); the slowest 60 s record measured 31.9 → 57–59 s.
+    noise_test : a candidate that brings a model clearly above the noise (held out at twice the
+        noise or more) within the noise on the held-out blocks (excess below ``min_gain``) may also
+        show its significance by :func:`_noise_z_p`, the held-out improvement against the noise left
+        in its own residual, beside the two block tests of :func:`_signed_rank_p` (Bonferroni over
+        the three).  An effect that acts at a few events improves a few blocks: with fewer than about
+        ten, no block test reaches the level however large the gain (unseen 171 #2, a slip jump on
+        ramps resting after slides in one direction only: refitted from the slip jump's basin, the
+        baseline misses four blocks by up to 150 times the noise and fits the rest; the slip jump
+        fits all of them at the noise, block p 0.047).  Only to the noise, because a model that still
+        misses the data can come nearer to it on the held-out blocks by absorbing part of another
+        effect's misfit, a gain the noise test calls significant and the block tests do not (unseen
+        141 #26, 159 #26, 169 #26: a deadband or a dead time beside a hidden Stribeck + lag, ending at
+        2–5 × the noise); and only from clearly above it, because a misfit within twice the noise
+        can be the model's at a few events, which a flexible effect fits (the clean record 137 #17,
+        1.7 × the noise held out, named a lag).  Measured on 326 records of unseen draws 119–173,
+        all 224 clean ones among them: 171 #2 is named, nothing else changes (ACCURACY.md, issue 8,
+        session 36).
     split_check : draws of the training / held-out blocks the whole search is run on (1: the one
         draw of the result).  With more, the result is still the first draw's; the others only
         count how many draws name each effect (``Reconciliation.split_named``), at that many times
@@ -293,6 +310,7 @@ class ReconcileConfig:
     stribeck_base: bool = True
     fold_start: bool = True
     retry_pairs: bool = True
+    noise_test: bool = True
     split_check: int = 1
 
     def __post_init__(self) -> None:
@@ -1314,12 +1332,37 @@ def _tau_int(e: np.ndarray, max_lag: int) -> float:
     return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:cut])))
 
 
+def _noise_z_p(e_ref: np.ndarray, e_new: np.ndarray, max_lag: int) -> float:
+    """One-sided p-value that a model with held-out residuals ``e_new`` is nearer the data's
+    deterministic part than one with ``e_ref`` (the same samples), against the noise left in
+    ``e_new``.  With data ``y = s + ε`` the improvement ``d = Σ e_ref² − e_new²`` is
+    ``‖s − x_ref‖² − ‖s − x_new‖² + 2 Σ δ ε`` (``δ = x_new − x_ref = e_ref − e_new``), and the two
+    models were fitted on other blocks, so ``δ`` does not depend on this ``ε``: under the null
+    (``x_new`` no nearer) ``d`` is at most ``2 Σ δ ε``, of variance ``4 s² ‖δ‖² τ`` for a noise of
+    variance ``s²`` and integrated autocorrelation time ``τ`` that varies faster than ``δ`` (the
+    Diebold & Mariano 1995 comparison of two forecasts, with the loss difference's variance from
+    the noise instead of from the blocks).  ``s²`` and ``τ`` are taken from ``e_new`` itself, which
+    holds the measurement noise and whatever the new model still misses, so a misfit makes the test
+    more conservative, not less.  It sees an effect that acts at a few events (a breakaway that one
+    model misses by a hundred times the noise and the other fits), where the block tests of
+    :func:`_signed_rank_p` cannot reach their level with fewer than about ten blocks."""
+    delta = e_ref - e_new
+    norm = float(np.sqrt(np.sum(delta**2)))
+    if norm == 0.0 or e_new.size < 2:
+        return 1.0
+    s = math.sqrt(float(np.mean(e_new**2)))
+    d = float(np.sum(e_ref**2 - e_new**2))
+    z = d / (2.0 * s * norm * math.sqrt(_tau_int(e_new, max_lag)))
+    return float(stats.norm.sf(z))
+
+
 @dataclass(frozen=True)
 class _Score:
     mse_h: float  # held-out mean square residual
     block_sse: np.ndarray  # per held-out block
     regime_sse: np.ndarray  # per regime, held-out
     n_h: int
+    e_h: np.ndarray  # the residuals themselves, held-out, records and samples in one order
 
 
 def _heldout_block_sums(values: list[np.ndarray], recs: list[Prepared], fold: str = "test") -> np.ndarray:
@@ -1337,20 +1380,22 @@ def _score(res: list[np.ndarray], recs: list[Prepared], fold: str = "test") -> _
     reg = np.zeros(len(REGIMES))
     sse = 0.0
     n = 0
+    kept = []
     for e, r in zip(res, recs):
         h = _fold_mask(r, fold)
         e2 = e**2
         sse += float(e2[h].sum())
         n += int(h.sum())
         reg += np.bincount(r.labels[h], weights=e2[h], minlength=len(REGIMES))
-    return _Score(sse / max(n, 1), _heldout_block_sums([e**2 for e in res], recs, fold), reg, n)
+        kept.append(e[h])
+    return _Score(sse / max(n, 1), _heldout_block_sums([e**2 for e in res], recs, fold), reg, n, np.concatenate(kept))
 
 
 def _pool(a: _Score, b: _Score) -> _Score:
     """Two folds' out-of-sample scores as one (every block scored once, by the fit that did not see it)."""
     n = a.n_h + b.n_h
     return _Score((a.mse_h * a.n_h + b.mse_h * b.n_h) / max(n, 1), np.concatenate([a.block_sse, b.block_sse]),
-                  a.regime_sse + b.regime_sse, n)
+                  a.regime_sse + b.regime_sse, n, np.concatenate([a.e_h, b.e_h]))
 
 
 @dataclass(frozen=True)
@@ -1961,6 +2006,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         """The four tests of a candidate scored ``sc`` against the current model's ``ref`` (same blocks)."""
         dbic = n_eff * math.log(ref.mse_h / sc.mse_h) - p_add * math.log(n_eff)
         t = _signed_rank_p(ref.block_sse - sc.block_sse)
+        if cfg.noise_test and ref.mse_h >= 4.0 * noise_pow and sc.mse_h < (1.0 + cfg.min_gain) * noise_pow:
+            # a candidate that brings a model clearly above the noise (twice it or more) within the noise on
+            # the held-out blocks: its residual is the noise the test assumes.  Three tests of one null:
+            # Bonferroni over all three
+            t = min(1.0, 1.5 * t, 3.0 * _noise_z_p(ref.e_h, sc.e_h, int(10 * cfg.block_s / recs[0].dt)))
         gain = ref.mse_h - sc.mse_h
         dreg = ref.regime_sse - sc.regime_sse
         pos = float(np.sum(np.clip(dreg, 0, None)))
