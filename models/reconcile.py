@@ -34,7 +34,9 @@ missing effect explains it, and how much does adding it shrink the gap.
      residual; ``BIC = n_eff·ln(MSE) + p·ln(n_eff)``);
    * the block-paired improvement is significant (over the held-out blocks, the smaller of a
      one-sided Wilcoxon signed-rank test and a sign-flip test of the summed improvement, doubled;
-     at ``alpha`` divided by the number of candidates tried, Bonferroni);
+     where the candidate brings a model at twice the noise or more within the noise, the smaller of
+     those two and the noise-referenced test :func:`_noise_z_p`, tripled: ``noise_test``; at
+     ``alpha`` divided by the number of candidates tried, Bonferroni);
    * it removes a model-error power of at least ``min_gain`` times the measurement-noise power
      (an improvement far below the noise is not worth a model term);
    * most of its gain (> 1/2) falls in the regimes the effect predicts (:data:`PREDICTS`).
@@ -1573,11 +1575,16 @@ def _n_params(e: str) -> int:
     return len(_effect_names(e)) + (e in ("slip_jump", "stribeck"))
 
 
+def _max_lag(cfg: ReconcileConfig, recs: list[Prepared]) -> int:
+    """The longest lag of a held-out residual's autocorrelation time (:func:`_tau_int`): 10 blocks."""
+    return int(10 * cfg.block_s / recs[0].dt)
+
+
 def _n_eff(res: list[np.ndarray], recs: list[Prepared], cfg: ReconcileConfig, n_h: int) -> float:
     """Effective number of independent held-out residuals: ``n_h`` over the integrated
     autocorrelation time of the held-out residuals (:func:`_tau_int`, up to 10 blocks)."""
     held = np.concatenate([e[~r.train] for e, r in zip(res, recs)])
-    return max(2.0, n_h / _tau_int(held, int(10 * cfg.block_s / recs[0].dt)))
+    return max(2.0, n_h / _tau_int(held, _max_lag(cfg, recs)))
 
 
 def _resolution(vals: dict[str, float], effect: str, recs: list[Prepared]) -> float:
@@ -2010,7 +2017,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # a candidate that brings a model clearly above the noise (twice it or more) within the noise on
             # the held-out blocks: its residual is the noise the test assumes.  Three tests of one null:
             # Bonferroni over all three
-            t = min(1.0, 1.5 * t, 3.0 * _noise_z_p(ref.e_h, sc.e_h, int(10 * cfg.block_s / recs[0].dt)))
+            t = min(1.0, 1.5 * t, 3.0 * _noise_z_p(ref.e_h, sc.e_h, _max_lag(cfg, recs)))
         gain = ref.mse_h - sc.mse_h
         dreg = ref.regime_sse - sc.regime_sse
         pos = float(np.sum(np.clip(dreg, 0, None)))
