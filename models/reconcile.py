@@ -757,14 +757,17 @@ def pressure_floor(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileC
     base = [_residuals(vals, [r], cfg, dv)[0] for r in recs]
     sp = [noise_std(np.asarray(r.data.p, float)) for r in recs]
     n = sum(r.x.size for r in recs)
-    out = np.empty(draws)
-    for j in range(draws):
+    noise = [[s * rng.standard_normal(r.p_smooth.size) for r, s in zip(recs, sp)] for _ in range(draws)]
+
+    def draw(noise_j: list[np.ndarray]) -> float:
         d2 = 0.0
-        for r, e0, s in zip(recs, base, sp):
-            pk = smooth_pressure(r.p_smooth + s * rng.standard_normal(r.p_smooth.size), r.dt)
+        for r, e0, w in zip(recs, base, noise_j):
+            pk = smooth_pressure(r.p_smooth + w, r.dt)
             d2 += float(np.sum((_residuals(vals, [replace(r, p_smooth=pk)], cfg, dv)[0] - e0) ** 2))
-        out[j] = math.sqrt(d2 / n)
-    return out
+        return math.sqrt(d2 / n)
+
+    # the draws on the threads of a running reconcile (the smoother and the simulator release the GIL)
+    return np.array(list((_THREAD_MAP.get() or map)(draw, noise)), dtype=float)
 
 
 def _decimate(r: Prepared, q: int) -> Prepared:
@@ -879,7 +882,7 @@ def _fit_once(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepare
             return [steps[1]] * len(points)
         steps[2] = True
         try:
-            return list((_JACOBIAN_MAP.get() or map)(f, points))
+            return list((_THREAD_MAP.get() or map)(f, points))
         finally:
             steps[2] = False
 
@@ -895,11 +898,11 @@ def _fit_once(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepare
     return _Fit(v, float(sum(np.sum(e[m] ** 2) for e, m in zip(res, masks))))
 
 
-#: How a fit in the calling process evaluates the columns of its finite-difference Jacobian: a
-#: map over threads while :func:`reconcile` runs (set by :class:`_FitPool`; the compiled
-#: simulator releases the GIL, and each column is the same computation on any thread), else
-#: None (one after the other).
-_JACOBIAN_MAP: ContextVar[Callable | None] = ContextVar("_JACOBIAN_MAP", default=None)
+#: How the calling process runs independent simulations (the columns of a fit's finite-difference
+#: Jacobian, the draws of :func:`pressure_floor`): a map over threads while :func:`reconcile` runs
+#: (set by :class:`_FitPool`; the compiled simulator releases the GIL, and each one is the same
+#: computation on any thread), else None (one after the other).
+_THREAD_MAP: ContextVar[Callable | None] = ContextVar("_THREAD_MAP", default=None)
 
 
 class _FitPool:
@@ -919,7 +922,7 @@ class _FitPool:
 
     A fit that runs alone in the calling process (the baseline's, a refinement, a swap model's)
     evaluates the columns of its finite-difference Jacobian on ``workers`` threads meanwhile
-    (:data:`_JACOBIAN_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
+    (:data:`_THREAD_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
@@ -954,7 +957,7 @@ class _FitPool:
     def __enter__(self) -> _FitPool:
         if self.workers > 1:
             self._threads = ThreadPoolExecutor(self.workers)
-            self._token = _JACOBIAN_MAP.set(self._threads.map)
+            self._token = _THREAD_MAP.set(self._threads.map)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -962,7 +965,7 @@ class _FitPool:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
         if self._threads is not None:
-            _JACOBIAN_MAP.reset(self._token)
+            _THREAD_MAP.reset(self._token)
             self._threads.shutdown()
             self._threads = None
 
@@ -973,7 +976,7 @@ _WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
 def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
     global _WORKER
     threadpool_limits(limits=1, user_api="blas")
-    _JACOBIAN_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
+    _THREAD_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
     _MEMO.set(None)  # and the caller's memo, which only the caller keeps
     _WORKER = (recs, cfg, dv)
 
@@ -986,6 +989,24 @@ def _worker_fit(task: tuple) -> _Fit:
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
                       k_scale: float = 1.0, at: str = "tail", fast_slides: bool = False) -> dict[str, float]:
+    """:func:`_balances`, taken from :data:`_MEMO` where the same balance was read before (the search
+    reads the same few balances hundreds of times as starts: 2.7 s of a 60 s record's run)."""
+    memo = _MEMO.get()
+    if memo is None:
+        return _balances(recs, cfg, tau, theta, k_scale, at, fast_slides)
+    key = _memo_key("balance", tau, theta, k_scale, at, fast_slides)
+    if key not in memo:
+        try:
+            memo[key] = _balances(recs, cfg, tau, theta, k_scale, at, fast_slides)
+        except IdentificationError as e:  # a balance the record cannot give: as often as it is asked for
+            memo[key] = e
+    if isinstance(memo[key], IdentificationError):
+        raise memo[key]
+    return dict(memo[key])  # a copy: callers may change their start
+
+
+def _balances(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
+              k_scale: float = 1.0, at: str = "tail", fast_slides: bool = False) -> dict[str, float]:
     """Start values from force balances where slides end and from the slides themselves.
 
     Where a slide ends, friction holds the stem at the edge of its stick band:
