@@ -17,6 +17,8 @@ from models.karnopp import PRESETS, pct_to_pa
 from models.reconcile import (
     REGIMES,
     Prepared,
+    _MEMO,
+    _THREAD_MAP,
     ReconcileConfig,
     _alternatives,
     backward_eliminate,
@@ -119,6 +121,51 @@ def test_the_pressure_floor_predicts_what_the_recorded_pressures_noise_does_to_t
     v = rec.valve
     clean = {"k": v.k, "fc": v.fc, "fv": v.fv, "bias": v.bias, "dv": v.dv, "nb": 0.0}
     assert np.median(pressure_floor(clean, [r], cfg, 0.01 * r.speed_max)) < 0.5 * r.sigma_x
+
+
+def test_the_search_memo_and_threads_change_no_number():
+    # the balances read from the memo are the balances read afresh (a copy each time: a caller may
+    # change its start), a balance the record cannot give is refused every time, and the pressure
+    # floor's draws on threads are the draws one after the other, bit for bit
+    from concurrent.futures import ThreadPoolExecutor
+
+    cfg = ReconcileConfig()
+    kws = [{}, {"at": "head"}, {"at": "breakaway"}, {"at": "head", "fast_slides": True}, {"tau": 0.1}, {"k_scale": 0.3}]
+    for hidden in ({}, {"stribeck": (1.5, 0.005)}):  # the Stribeck record last: its recs serve the floor below
+        rec = hidden_record(PRESETS["low"], SHORT, hidden, seed=2)
+        recs = [prepare(ValveData(rec.t, rec.p, rec.x, "short"), cfg.block_s, cfg.sa)]
+        fresh = []
+        for kw in kws:
+            try:
+                fresh.append(_initial_baseline(recs, cfg, **kw))
+            except IdentificationError as e:
+                fresh.append(e)
+        # the premise: the clean record gives no breakaway balance (no slip jump to read)
+        assert isinstance(fresh[2], IdentificationError) == (not hidden)
+        token = _MEMO.set({})  # one memo per record, as in a search
+        try:
+            for _ in range(2):
+                for kw, want in zip(kws, fresh):
+                    if isinstance(want, IdentificationError):
+                        with pytest.raises(IdentificationError):
+                            _initial_baseline(recs, cfg, **kw)
+                        continue
+                    got = _initial_baseline(recs, cfg, **kw)
+                    assert got == want
+                    got["fc"] = -1.0  # the memo's copy is not the caller's
+        finally:
+            _MEMO.reset(token)
+    v = rec.valve
+    truth = {"k": v.k, "fc": v.fc, "fv": v.fv, "bias": v.bias, "dv": v.dv, "nb": 0.0, "dfs": v.fs - v.fc, "vs": v.vs}
+    dv = 0.01 * recs[0].speed_max
+    serial = pressure_floor(truth, recs, cfg, dv, draws=4)
+    with ThreadPoolExecutor(2) as ex:
+        token = _THREAD_MAP.set(ex.map)
+        try:
+            threaded = pressure_floor(truth, recs, cfg, dv, draws=4)
+        finally:
+            _THREAD_MAP.reset(token)
+    assert np.array_equal(serial, threaded) and np.all(serial > 0)
 
 
 def test_backward_elimination_takes_out_unresolved_and_unneeded_effects_and_keeps_the_planted_ones():
