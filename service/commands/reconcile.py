@@ -18,6 +18,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
 
 from adapters.valve_csv import read_valve_csv
 from models.karnopp import M_KG, SA_M2
@@ -168,7 +169,10 @@ def run(args: argparse.Namespace) -> int:
     sig = read_valve_csv(args.signature) if args.signature is not None else None
     cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band,
                           global_search=args.global_search, split_check=args.split_check)
-    r = reconcile(data, sig, cfg)
+    n = data.t.size + (sig.t.size if sig is not None else 0)
+    # a spinner on a terminal (nothing when piped): a 60 s record at 1 ms takes up to a minute
+    with Console(stderr=True).status(f"reconciling {args.data.name}: {n} samples (up to a minute per 60 000)"):
+        r = reconcile(data, sig, cfg)
     lines = _lines(r)
     print("\n".join(lines))
     if args.json is not None:
