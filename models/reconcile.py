@@ -1601,11 +1601,11 @@ def _max_lag(cfg: ReconcileConfig, recs: list[Prepared]) -> int:
     return int(10 * cfg.block_s / recs[0].dt)
 
 
-def _n_eff(res: list[np.ndarray], recs: list[Prepared], cfg: ReconcileConfig, n_h: int) -> float:
-    """Effective number of independent held-out residuals: ``n_h`` over the integrated
-    autocorrelation time of the held-out residuals (:func:`_tau_int`, up to 10 blocks)."""
-    held = np.concatenate([e[~r.train] for e, r in zip(res, recs)])
-    return max(2.0, n_h / _tau_int(held, _max_lag(cfg, recs)))
+def _n_eff(sc: _Score, recs: list[Prepared], cfg: ReconcileConfig) -> float:
+    """Effective number of independent held-out residuals of a score ``sc`` (:func:`_score` on the
+    held-out blocks): their number over their integrated autocorrelation time (:func:`_tau_int`,
+    up to 10 blocks)."""
+    return max(2.0, sc.n_h / _tau_int(sc.e_h, _max_lag(cfg, recs)))
 
 
 def _resolution(vals: dict[str, float], effect: str, recs: list[Prepared]) -> float:
@@ -1654,7 +1654,7 @@ def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Pr
             continue
         res = _residuals(vals, recs, cfg, dv)
         sc = _score(res, recs)
-        n_eff = _n_eff(res, recs, cfg, sc.n_h)
+        n_eff = _n_eff(sc, recs, cfg)
         keep = {}
         for e in effects:
             v_wo = _without(vals, e, base_rule)
@@ -2118,7 +2118,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         if not todo:
             message, misses = f"no candidate effect left to try{misfit}", ratio >= 2.0
             break
-        n_eff = _n_eff(res_all_cur, recs, cfg, sc_cur.n_h)
+        n_eff = _n_eff(sc_cur, recs, cfg)
         t_crit = cfg.alpha / len(todo)  # Bonferroni over the candidates of this step
         fold2: list = []  # the current model fitted on the held-out blocks, scored on the training blocks
 
