@@ -297,12 +297,18 @@ _TRUTH_NAMES = {"slip_jump": ("dfs",), "stribeck": ("dfs", "vs"), "actuator_lag"
                 "deadband": ("deadband",)}
 
 
+def _valve(case: dict) -> dict:
+    """A record's valve as the independent cases give it (``k``, ``sa``, ``fc``, ``fv``, ``bias``, ...)."""
+    return case["valve"] if case.get("indep") else vars(PRESETS[case["preset"]])
+
+
 def truth_values(case: dict, cfg: ReconcileConfig, without: str | None = None) -> tuple[dict[str, float], list[str]]:
-    """The workflow's parameters of an independent record's truth (its simulator's parameters map
-    one-to-one onto them), with the effect ``without`` taken out; and the names of the parameters."""
+    """The workflow's parameters of a record's truth (the independent simulator's parameters, and the
+    own generator's :class:`~models.valve_effects.EffectValve`, map one-to-one onto them), with the
+    effect ``without`` taken out; and the names of the parameters."""
     from models import reconcile as rc
 
-    valve = case["valve"]
+    valve = _valve(case)
     vals = dict(k=valve["k"], fc=valve["fc"], fv=valve["fv"], bias=valve["bias"], nb=cfg.stick_band)
     names = list(rc._BASE)
     for e, size in case["hidden"].items():
@@ -315,12 +321,12 @@ def truth_values(case: dict, cfg: ReconcileConfig, without: str | None = None) -
 
 
 def truth_ratio(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> float:
-    """RMSE of an independent record's truth, as the workflow simulates it (from the smoothed
+    """RMSE of a record's truth, as the workflow simulates it (from the smoothed
     recorded pressure, no refit), over the measurement noise: how near the workflow's model family
-    and its pressure filter come to the independent simulator on that record (1 = within the noise)."""
+    and its pressure filter come to the simulator that made the record (1 = within the noise)."""
     from models import reconcile as rc
 
-    cfg = ReconcileConfig(sa=case["valve"]["sa"])
+    cfg = ReconcileConfig(sa=_valve(case)["sa"])
     rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
     vals, _ = truth_values(case, cfg)
     e = rc._residuals(vals, [rec], cfg, 0.01 * rec.speed_max)[0]
@@ -328,17 +334,17 @@ def truth_ratio(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> floa
 
 
 def visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> dict[str, float]:
-    """How far each hidden effect of an independent record shows (beside the other, in a pair):
+    """How far each hidden effect of a record shows (beside the other, in a pair):
     the RMSE on the training blocks of the truth with that effect taken out (the Karnopp
     parameters and the other effect refitted locally, from the truth), over the noise.  It does
     not depend on the workflow's run, unlike the reported baseline that "clearly above the noise"
     reads (session 20).  A local refit bounds the best such model from above, so a ratio near 1
     proves the effect invisible on that record (no method can name it); a large ratio does not
     prove it visible.  The truth's parameters map
-    one-to-one onto the workflow's (independent simulator only), so this uses its private fit."""
+    one-to-one onto the workflow's (:func:`truth_values`), so this uses its private fit."""
     from models import reconcile as rc
 
-    cfg = ReconcileConfig(sa=case["valve"]["sa"])
+    cfg = ReconcileConfig(sa=_valve(case)["sa"])
     rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
     dv = 0.01 * rec.speed_max
     out = {}
@@ -375,7 +381,7 @@ def run_case(case: dict, global_search: bool = False) -> dict:
     except Exception as exc:  # noqa: BLE001 - a failed case is counted, not fatal
         out = dict(effects=["error"], base=math.nan, final=math.nan, noise=math.nan, error=repr(exc)[:200])
     out["seconds"] = time.perf_counter() - t0
-    if case.get("indep") and case["kind"] in ("single", "pair"):
+    if case["kind"] in ("single", "pair"):
         try:
             out["visible"] = visibility(case, t, p, x)
         except ModelError:  # a record the workflow refuses is counted above, not measured here
@@ -406,7 +412,7 @@ def report(name: str, results: list[dict]) -> None:
     def clear(r):  # the hidden effect is clearly above the noise: the baseline misses by more than the noise
         return r["base"] >= 2.0 * r["noise"]
 
-    def shown(r):  # each hidden effect clearly visible (see visibility): independent records only
+    def shown(r):  # each hidden effect clearly visible (see visibility)
         return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
 
     above = [r for r in singles if clear(r)]
@@ -544,14 +550,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--workers", type=int, default=WORKERS)
     ap.add_argument("--against")
     ap.add_argument("--global-search", action="store_true", help="reconcile with ReconcileConfig.global_search on")
-    ap.add_argument("--truth", action="store_true", help="independent records only: the truth's RMSE over the noise "
+    ap.add_argument("--truth", action="store_true", help="the truth's RMSE over the noise "
                     "(truth_ratio) instead of a reconcile run")
     a = ap.parse_args(argv)
     items = [it for s in a.specs for it in select(s)]
     print(f"machine: {machine_note()}; workers {a.workers}; {len(items)} records", flush=True)
     t0 = time.perf_counter()
     if a.truth:
-        items = [it for it in items if it[1].get("indep")]
         with ProcessPoolExecutor(a.workers) as pool:
             res = list(pool.map(_truth_tagged, items))
         for r in res:
