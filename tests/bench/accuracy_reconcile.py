@@ -13,8 +13,7 @@ Two suites, reported separately:
   (random steps, ramps, sine sweep, PRBS), random V/P lag, random effect sizes and noise.
 
 Prints the confusion matrix (hidden effect vs. first effect named), detection rates, pair
-results (on the independent records also how far each effect shows, beside the other in a pair,
-see :func:`visibility`), the smallest detectable size per effect and final/baseline RMSE ratios.
+results (also how far each effect shows, beside the other in a pair, see :func:`visibility`), the smallest detectable size per effect and final/baseline RMSE ratios.
 
 Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.py``
 (``LOOPWATCH_BENCH_WORKERS`` processes, default 2; ``LOOPWATCH_BENCH_QUICK=1`` for a smoke run;
@@ -35,6 +34,7 @@ import os
 import time
 from collections import Counter, defaultdict
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -298,8 +298,9 @@ _TRUTH_NAMES = {"slip_jump": ("dfs",), "stribeck": ("dfs", "vs"), "actuator_lag"
 
 
 def _valve(case: dict) -> dict:
-    """A record's valve as the independent cases give it (``k``, ``sa``, ``fc``, ``fv``, ``bias``, ...)."""
-    return case["valve"] if case.get("indep") else vars(PRESETS[case["preset"]])
+    """A record's valve as the independent cases give it (``k``, ``sa``, ``fc``, ``fv``, ``bias``, ...); an own
+    record's is its preset's fields (a copy)."""
+    return case["valve"] if case.get("indep") else asdict(PRESETS[case["preset"]])
 
 
 def truth_values(case: dict, cfg: ReconcileConfig, without: str | None = None) -> tuple[dict[str, float], list[str]]:
@@ -418,7 +419,7 @@ def report(name: str, results: list[dict]) -> None:
     above = [r for r in singles if clear(r)]
     for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", above),
                        ("clearly visible (the truth without it, refitted from the truth, misses the training blocks "
-                        "by ≥ 2 × noise; independent records)", [r for r in singles if shown(r)])):
+                        "by ≥ 2 × noise)", [r for r in singles if shown(r)])):
         ok = sum(1 for r in sel if r["effects"][:1] == list(r["hidden"]))
         print(f"single effect named first, {label}: {ok}/{len(sel)} = {ok / max(len(sel), 1):.0%}")
     # by hidden effect: on the unseen draws the above-noise shortfall was Stribeck's alone (ACCURACY.md, session 23)
