@@ -244,7 +244,8 @@ def test_a_misfit_the_pressure_noise_explains_is_said_to_be_so():
     assert truth_rmse > 3 * r.noise_floor  # the premise: even the truth reads far above the noise
     assert r.effects == ["stribeck"]
     assert "the model still misses the data" in r.message
-    assert r.message.endswith("the misfit is within what the pressure noise explains, so it need not be a missing effect")
+    # the search's own verdict on its misfit (a second search's report, where one ran, follows it)
+    assert "the misfit is within what the pressure noise explains, so it need not be a missing effect" in r.message
     assert r.pressure_floor > 2 * r.noise_floor
 
 
