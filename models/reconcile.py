@@ -2030,6 +2030,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             return n_params(c.effect, *c.replaces.split("->"))
         return sum(n_params(e, "", "") for e in c.effect.split("+"))
 
+    def held_mse(v: dict[str, float]) -> float:  # the model's mean square error on the held-out blocks
+        return _score(_residuals(v, recs, cfg, dv), recs).mse_h
+
+    def bic_gap(mse: float, p: int, mse_ref: float, p_ref: int) -> float:
+        """BIC of a model (held-out ``mse``, ``p`` parameters added) against a reference's, on one footing:
+        the held-out blocks of fits on the training blocks and the round's ``n_eff``.  Below 2 the
+        reference is "not worth more than a bare mention" better (Kass & Raftery 1995, section 3.2)."""
+        return n_eff * math.log(mse / mse_ref) + (p - p_ref) * math.log(n_eff)
+
     def judge(eff: str, with_: tuple[str, ...], p_add: int, ref: _Score, sc: _Score, n_eff: float, t_crit: float):
         """The four tests of a candidate scored ``sc`` against the current model's ``ref`` (same blocks)."""
         dbic = n_eff * math.log(ref.mse_h / sc.mse_h) - p_add * math.log(n_eff)
@@ -2348,23 +2357,20 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 c_sj = assess("slip_jump", "slip_jump", v_sj, "", "", n_params("slip_jump", "", ""), t_crit, refit_nested)
                 rounds[-1] += (c_sj,)
                 slip = (c_sj, v_sj, names_sj) if c_sj.passed else None
-            if slip is not None:
-                # the two on the same footing: the held-out blocks of the fits on the training blocks,
-                # the round's n_eff, one parameter fewer for the slip jump (as the look-alikes below)
-                d_nest = (n_eff * math.log(_score(_residuals(slip[1], recs, cfg, dv), recs).mse_h
-                                           / _score(_residuals(best_v, recs, cfg, dv), recs).mse_h)
-                          - math.log(n_eff))
-                if flat:
-                    # a Stribeck curve that has reached F_c (within exp(-9)) below the record's slow
-                    # sliding speeds is never sampled between F_s and F_c: a slip jump is the same model
-                    unsampled = (f"; stribeck (ΔBIC {best_c.delta_bic:.1f}) is not named: its friction reaches F_c below "
-                                 f"3·v_s = {3e3 * best_v['vs']:.2f} mm/s, under the record's slow slides "
-                                 f"({1e3 * v_slow:.2f} mm/s, 10th percentile), where a slip jump is the same model")
-                    best_c, best_v, best_free = slip
-                elif d_nest < 2.0:
-                    # the Stribeck curve's evidence over the slip jump it nests is "not worth more than
-                    # a bare mention" (Kass & Raftery 1995, section 3.2): the simpler model is named
-                    # (unseen 133 #1: a slip jump named Stribeck, the slip jump 2.0 better by BIC)
+            if slip is not None and flat:
+                # a Stribeck curve that has reached F_c (within exp(-9)) below the record's slow
+                # sliding speeds is never sampled between F_s and F_c: a slip jump is the same model
+                unsampled = (f"; stribeck (ΔBIC {best_c.delta_bic:.1f}) is not named: its friction reaches F_c below "
+                             f"3·v_s = {3e3 * best_v['vs']:.2f} mm/s, under the record's slow slides "
+                             f"({1e3 * v_slow:.2f} mm/s, 10th percentile), where a slip jump is the same model")
+                best_c, best_v, best_free = slip
+            elif slip is not None:
+                # the Stribeck curve's evidence over the slip jump it nests, on the look-alikes' footing
+                # (bic_gap): below 2 the simpler model is named (unseen 133 #1: a slip jump named
+                # Stribeck, the slip jump 2.0 better by BIC)
+                d_nest = bic_gap(held_mse(slip[1]), n_params("slip_jump", "", ""), held_mse(best_v),
+                                 n_params("stribeck", "", ""))
+                if d_nest < 2.0:
                     unsampled = (f"; stribeck (ΔBIC {best_c.delta_bic:.1f}) is not named: slip_jump, the model it nests "
                                  f"(v_s → 0), fits the held-out blocks about as well with one parameter fewer "
                                  f"(BIC {d_nest:+.1f} against stribeck, < 2)")
@@ -2411,14 +2417,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                 out = (out - {old}) | {new}
             return frozenset(out)
 
-        mse_best = _score(_residuals(best_v, recs, cfg, dv), recs).mse_h
+        mse_best = held_mse(best_v)
         alike = []
         for c, v, _ in rivals:
             # a rival proposing the winner's own model (a swap reached from the other side) is none
             if c is best_c or not c.passed or model_of(c) == model_of(best_c):
                 continue
-            d_bic = (n_eff * math.log(_score(_residuals(v, recs, cfg, dv), recs).mse_h / mse_best)
-                     + (p_of(c) - p_of(best_c)) * math.log(n_eff))
+            d_bic = bic_gap(held_mse(v), p_of(c), mse_best, p_of(best_c))
             if d_bic < 2.0:
                 alike.append(c.effect)
                 evidence += (f"; {c.effect} fits the held-out blocks about as well (BIC {d_bic:+.1f} against "
