@@ -10,6 +10,8 @@ quiet machine.  Also printed, not asserted: a 60 s version of the slowest unseen
 the 40 s original took 65–90 s in session 8), of unseen draw 127, record 26 (ramps, Stribeck +
 lag: the slowest since the Stribeck search of session 24) and of unseen draw 159, record 4 (PRBS,
 Stribeck: the slowest known since session 35).  Also
+prints :func:`core_probe` (the simulator alone and beside a copy of itself on the other core: how
+fast the machine is today, as the 60 s line sees it).  Also
 times, in the same run, the compiled simulator against the pure-Python one of issue 7
 (:func:`models.karnopp.simulate`) on the same record: the fits run the simulator hundreds of times.
 
@@ -35,6 +37,48 @@ from .accuracy_reconcile import indep_cases, make_record, select
 from .conftest import machine_note
 
 
+def _probe_loop(valve: EffectValve, pc: np.ndarray, reps: int, barrier, out) -> None:
+    barrier.wait()  # both copies start together
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        simulate_effects(valve, pc, 1e-3)
+    out.put((time.perf_counter() - t0) / reps)
+
+
+def core_probe(reps: int = 1500) -> tuple[float, float]:
+    """Seconds per compiled 60 000-step simulation (the low preset with a Stribeck curve on the
+    square test), (run alone, run with a copy of itself on the other core at the same time).
+
+    The search spends most of its time in this simulator on both cores at once, so the second
+    figure is what its run time scales with.  On the shared 2-core machine the two differ from day
+    to day: 159 #4 at 60 s made the same 1018 fits in 53.5-57 s (94 s CPU) in session 37 and in
+    62-70 s (108-114 s CPU) in sessions 39-40 (BENCHMARKS.md, issue 8, session 40).  Printed beside
+    the 60 s runs with the number of fits, it tells a slow machine from a search that does more work."""
+    import multiprocessing
+
+    valve = EffectValve.from_karnopp(PRESETS["low"]).replace(fs=1.4 * PRESETS["low"].fc, vs=3e-3)
+    pc = square(periods=60.0 / 10.4).p_cmd
+    simulate_effects(valve, pc, 1e-3)  # compile (or load the cache) before forking
+    ctx = multiprocessing.get_context("fork")
+    times = []
+    for copies in (1, 2):
+        barrier, out = ctx.Barrier(copies), ctx.Queue()
+        procs = [ctx.Process(target=_probe_loop, args=(valve, pc, reps, barrier, out)) for _ in range(copies)]
+        for p in procs:
+            p.start()
+        got = [out.get() for _ in procs]
+        for p in procs:
+            p.join()
+        times.append(max(got))
+    return times[0], times[1]
+
+
+def _probe_line() -> str:
+    alone, both = core_probe()
+    return (f"core probe: one compiled 60 000-step Stribeck simulation {alone * 1e3:.2f} ms alone, {both * 1e3:.2f} ms "
+            f"with a copy on the other core ({both / alone:.2f} x)")
+
+
 def _cpu() -> float:
     t = os.times()  # the worker processes count once they have ended (reconcile ends them)
     return t.user + t.system + t.children_user + t.children_system
@@ -50,6 +94,7 @@ def test_reconcile_60s_record_under_60s():
     }
     print()
     print(f"machine: {machine_note()}")
+    print(_probe_line())
     worst = 0.0
     for name, (params, exc, hidden) in cases.items():
         assert abs(exc.t.size - 60000) <= 10
@@ -114,7 +159,8 @@ def test_split_check_cost():
 def main(argv: list[str] | None = None) -> None:
     """``python -m tests.bench.bench_reconcile DRAW:I ...``: the 60 s version of each unseen record
     (same valve, hidden effects, noise and seed; a 60 s excitation) reconciled alone, one after
-    the other: wall and CPU time, the calls to the Stribeck search (:func:`models.reconcile._stribeck_search`;
+    the other: wall and CPU time, the fits made (:func:`models.reconcile._fit_once`, in the calling
+    process and the workers: the search's work, whatever the machine's speed), the calls to the Stribeck search (:func:`models.reconcile._stribeck_search`;
     a second search's repeats of the first's are taken from its memo) and the time in them, whether the second search ran (``ReconcileConfig.retry_pairs``), the effects named."""
     import sys
 
@@ -130,16 +176,28 @@ def main(argv: list[str] | None = None) -> None:
             calls.append(time.perf_counter() - t0)
 
     rc._stribeck_search = counted
+    import multiprocessing
+
+    fits, fit_once = multiprocessing.get_context("fork").Value("l", 0), rc._fit_once
+
+    def fit_counted(*a, **kw):  # the workers are forked after this: they count in the shared value
+        with fits.get_lock():
+            fits.value += 1
+        return fit_once(*a, **kw)
+
+    rc._fit_once = fit_counted
     print(f"machine: {machine_note()}")
+    print(_probe_line(), flush=True)
     for tag, case in (tc for spec in (sys.argv[1:] if argv is None else argv) for tc in select(spec)):
         draw, _, idx = tag.partition(":")
         t, p, x, sa = make_record(case, 60.0)
         calls.clear()
+        fits.value = 0
         t0, c0 = time.perf_counter(), _cpu()
         r = reconcile(ValveData(t, p, x, "bench"), config=ReconcileConfig(sa=sa))
         dt, cpu = time.perf_counter() - t0, _cpu() - c0
         print(f"{tag} ({draw} #{int(idx) + 1}, {case['exc']}, hidden {'+'.join(case['hidden']) or 'none'}): {t.size} "
-              f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {len(calls)} Stribeck "
+              f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {fits.value} fits, {len(calls)} Stribeck "
               f"searches ({sum(calls):.1f} s), second search {r.second_search or 'not run'}, effects {r.effects}", flush=True)
 
 
