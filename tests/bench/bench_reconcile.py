@@ -45,9 +45,11 @@ def _probe_loop(valve: EffectValve, pc: np.ndarray, reps: int, barrier, out) -> 
     out.put((time.perf_counter() - t0) / reps)
 
 
-def core_probe(reps: int = 1500) -> tuple[float, float]:
+def core_probe(reps: int = 1000, rounds: int = 3) -> tuple[float, float]:
     """Seconds per compiled 60 000-step simulation (the low preset with a Stribeck curve on the
-    square test), (run alone, run with a copy of itself on the other core at the same time).
+    square test), (run alone, run with a copy of itself on the other core at the same time): the
+    medians of ``rounds`` alternations of the two (one core alone may run at a higher clock, or
+    share its host with other work at that moment: single figures of either vary by a third).
 
     The search spends most of its time in this simulator on both cores at once, so the second
     figure is what its run time scales with.  On the shared 2-core machine the two differ from day
@@ -60,17 +62,18 @@ def core_probe(reps: int = 1500) -> tuple[float, float]:
     pc = square(periods=60.0 / 10.4).p_cmd
     simulate_effects(valve, pc, 1e-3)  # compile (or load the cache) before forking
     ctx = multiprocessing.get_context("fork")
-    times = []
-    for copies in (1, 2):
-        barrier, out = ctx.Barrier(copies), ctx.Queue()
-        procs = [ctx.Process(target=_probe_loop, args=(valve, pc, reps, barrier, out)) for _ in range(copies)]
-        for p in procs:
-            p.start()
-        got = [out.get() for _ in procs]
-        for p in procs:
-            p.join()
-        times.append(max(got))
-    return times[0], times[1]
+    times: dict[int, list[float]] = {1: [], 2: []}
+    for _ in range(rounds):
+        for copies in (1, 2):
+            barrier, out = ctx.Barrier(copies), ctx.Queue()
+            procs = [ctx.Process(target=_probe_loop, args=(valve, pc, reps, barrier, out)) for _ in range(copies)]
+            for p in procs:
+                p.start()
+            got = [out.get() for _ in procs]
+            for p in procs:
+                p.join()
+            times[copies].append(max(got))
+    return float(np.median(times[1])), float(np.median(times[2]))
 
 
 def _probe_line() -> str:
