@@ -21,6 +21,7 @@ DRAW:I ...`` (``I`` from 0; ``DRAW:all`` and ``DRAW:pairs`` too, as in ``accurac
 :func:`main`).
 """
 
+import multiprocessing
 import os
 import time
 
@@ -54,10 +55,8 @@ def core_probe(reps: int = 1000, rounds: int = 3) -> tuple[float, float]:
     The search spends most of its time in this simulator on both cores at once, so the second
     figure is what its run time scales with.  On the shared 2-core machine the two differ from day
     to day: 159 #4 at 60 s made the same 1018 fits in 53.5-57 s (94 s CPU) in session 37 and in
-    62-70 s (108-114 s CPU) in sessions 39-40 (BENCHMARKS.md, issue 8, session 40).  Printed beside
+    62-71 s (108-122 s CPU) in sessions 39-40 (BENCHMARKS.md, issue 8, session 40).  Printed beside
     the 60 s runs with the number of fits, it tells a slow machine from a search that does more work."""
-    import multiprocessing
-
     valve = EffectValve.from_karnopp(PRESETS["low"]).replace(fs=1.4 * PRESETS["low"].fc, vs=3e-3)
     pc = square(periods=60.0 / 10.4).p_cmd
     simulate_effects(valve, pc, 1e-3)  # compile (or load the cache) before forking
@@ -179,8 +178,6 @@ def main(argv: list[str] | None = None) -> None:
             calls.append(time.perf_counter() - t0)
 
     rc._stribeck_search = counted
-    import multiprocessing
-
     fits, fit_once = multiprocessing.get_context("fork").Value("l", 0), rc._fit_once
 
     def fit_counted(*a, **kw):  # the workers are forked after this: they count in the shared value
