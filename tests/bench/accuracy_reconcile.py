@@ -267,30 +267,48 @@ def own_cases() -> list[dict]:
     return cases
 
 
+INDEP_EXCITATIONS = ("random-steps", "ramps", "sine-sweep", "prbs")
+INDEP_PAIRS = (("actuator_lag", "deadband"), ("slip_jump", "dead_time"), ("stribeck", "actuator_lag"),
+               ("dead_time", "deadband"), ("slip_jump", "deadband"))
+
+
+def _indep_case(rng: np.random.Generator, kind: str, effects: tuple[str, ...], exc: str, seed: int) -> dict:
+    """One independent case: a random valve, the hidden ``effects`` at random sizes, random noise."""
+    k = rng.uniform(1.2e5, 3.5e5)
+    sa = float(rng.choice([0.03, 0.0445, 0.06]))
+    valve = dict(k=k, sa=sa, m=rng.uniform(1.0, 3.0), fc=rng.uniform(100.0, 700.0),
+                 fv=k * rng.uniform(0.01, 0.15), bias=rng.uniform(0.0, 3e-3),
+                 tau_vp=float(rng.choice([0.0, 0.3, 1.0])))
+
+    def size(e):
+        return {"slip_jump": (rng.uniform(1.2, 1.6),), "stribeck": (rng.uniform(1.3, 1.6), rng.uniform(3e-3, 1e-2)),
+                "actuator_lag": (rng.uniform(0.05, 0.4),), "dead_time": (rng.uniform(0.02, 0.15),),
+                "deadband": (rng.uniform(0.3e-3, 1.5e-3),)}[e]
+
+    return dict(kind=kind, indep=True, valve=valve, exc=exc, hidden={e: size(e) for e in effects},
+                noise=(rng.uniform(5e-6, 2e-5), rng.uniform(50.0, 400.0)), seed=seed)
+
+
 def indep_cases(seed: int = 20261122) -> list[dict]:
+    """A draw of 28 independent cases: each effect alone three times, 8 clean, the five pairs of
+    :data:`INDEP_PAIRS`; the excitations cycle through :data:`INDEP_EXCITATIONS` by index, so each
+    pair always meets the same excitation (the Stribeck + lag pair: ramps)."""
     rng = np.random.default_rng(seed)
-    excs = ["random-steps", "ramps", "sine-sweep", "prbs"]
-    cases = []
-    kinds = [("single", e) for e in EFFECTS for _ in range(3)] + [("clean", None)] * 8
-    pairs = [("actuator_lag", "deadband"), ("slip_jump", "dead_time"), ("stribeck", "actuator_lag"),
-             ("dead_time", "deadband"), ("slip_jump", "deadband")]
-    kinds += [("pair", p) for p in pairs]
-    for i, (kind, what) in enumerate(kinds):
-        k = rng.uniform(1.2e5, 3.5e5)
-        sa = float(rng.choice([0.03, 0.0445, 0.06]))
-        valve = dict(k=k, sa=sa, m=rng.uniform(1.0, 3.0), fc=rng.uniform(100.0, 700.0),
-                     fv=k * rng.uniform(0.01, 0.15), bias=rng.uniform(0.0, 3e-3),
-                     tau_vp=float(rng.choice([0.0, 0.3, 1.0])))
+    kinds = [("single", (e,)) for e in EFFECTS for _ in range(3)] + [("clean", ())] * 8
+    kinds += [("pair", p) for p in INDEP_PAIRS]
+    return [_indep_case(rng, kind, effects, INDEP_EXCITATIONS[i % 4],
+                        1000 + i + (0 if seed == 20261122 else 100 * (seed % 97 + 1)))
+            for i, (kind, effects) in enumerate(kinds)]
 
-        def size(e):
-            return {"slip_jump": (rng.uniform(1.2, 1.6),), "stribeck": (rng.uniform(1.3, 1.6), rng.uniform(3e-3, 1e-2)),
-                    "actuator_lag": (rng.uniform(0.05, 0.4),), "dead_time": (rng.uniform(0.02, 0.15),),
-                    "deadband": (rng.uniform(0.3e-3, 1.5e-3),)}[e]
 
-        effs = [] if kind == "clean" else ([what] if kind == "single" else list(what))
-        cases.append(dict(kind=kind, indep=True, valve=valve, exc=excs[i % 4], hidden={e: size(e) for e in effs},
-                          noise=(rng.uniform(5e-6, 2e-5), rng.uniform(50.0, 400.0)), seed=1000 + i + (0 if seed == 20261122 else 100 * (seed % 97 + 1))))
-    return cases
+def indep_pair_cases(seed: int) -> list[dict]:
+    """20 independent pair cases: each pair of :data:`INDEP_PAIRS` on each excitation of
+    :data:`INDEP_EXCITATIONS` (pair-major order: index ``4 i + j`` is pair ``i`` on excitation
+    ``j``), drawn as :func:`indep_cases` draws its cases.  :func:`indep_cases` ties each pair to
+    one excitation; these measure the pairs on the others too (``x``-draws of :func:`select`)."""
+    rng = np.random.default_rng(seed)
+    return [_indep_case(rng, "pair", p, exc, 5000 + 4 * i + j + 100 * (seed % 97 + 1))
+            for i, p in enumerate(INDEP_PAIRS) for j, exc in enumerate(INDEP_EXCITATIONS)]
 
 
 _TRUTH_NAMES = {"slip_jump": ("dfs",), "stribeck": ("dfs", "vs"), "actuator_lag": ("tau",), "dead_time": ("theta",),
@@ -502,9 +520,15 @@ def test_reconcile_accuracy():
 def select(spec: str) -> list[tuple[str, dict]]:
     """Records named by ``SPEC``: ``own:all``, ``own:I``, ``SEED:all``, ``SEED:pairs`` or ``SEED:I``
     (``I`` counts from 0; ACCURACY.md numbers independent records from 1, so ``67:5`` is 67 #6 and
-    ``own:I`` is tag I).  Returns ``(tag, case)`` pairs."""
+    ``own:I`` is tag I); ``xSEED:all`` / ``xSEED:I``: the pair draws of :func:`indep_pair_cases`.
+    Returns ``(tag, case)`` pairs."""
     src, _, which = spec.partition(":")
-    cases = own_cases() if src == "own" else indep_cases(int(src))
+    if src == "own":
+        cases = own_cases()
+    elif src.startswith("x"):
+        cases = indep_pair_cases(int(src[1:]))
+    else:
+        cases = indep_cases(int(src))
     if which == "all":
         idx = range(len(cases))
     elif which == "pairs":
