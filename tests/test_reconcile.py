@@ -513,6 +513,23 @@ def test_a_search_that_ends_above_the_noise_after_a_weak_first_step_is_run_again
     assert "run again with the pairs" in r.message and " kept against" in r.message and r.second_search == "kept"
 
 
+def test_a_cross_fitted_first_step_is_weighed_against_the_current_models_two_folds():
+    # unseen x187 #5 (independent simulator, a pair draw): a slip jump of 1.49 and a 39 ms dead time on
+    # random steps.  The baseline sits in a wrong basin (bias 4.1 mm against the planted 1.1); refitted in a
+    # better one, the dead time passes by the cross-fit and leaves most of the excess of the current model's
+    # two folds (held out 238 -> 181 µm, noise 14 µm), but was weighed against its first fold alone (439 µm), so
+    # the search was not run again with the pairs and ended at 12 times the noise.  Weighed on the same
+    # blocks it is weak, the pairs run, and the planted pair fits within 1.5 times the noise
+    data, cfg = _unseen("x187:4")
+    r = reconcile(data, config=cfg)
+    assert r.second_search == "kept" and set(r.effects) == {"slip_jump", "dead_time"}
+    assert r.final.rmse < 1.5 * r.noise_floor
+    assert "kept against the first search's dead_time (" in r.message
+    n2 = r.noise_floor**2  # a passing, cross-fitted dead time that leaves most of its reference's excess: weak
+    assert any(c.effect == "dead_time" and c.passed and c.cross_fitted
+               and c.heldout_rmse**2 - n2 > 0.5 * (c.ref_heldout_rmse**2 - n2) for rnd in r.rounds for c in rnd)
+
+
 @pytest.mark.slow
 def test_a_search_that_ends_within_the_noise_is_not_run_again():
     # unseen 129 #1: a slip jump of 1.56 on random steps.  Its first step also leaves most of the
