@@ -575,6 +575,12 @@ def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_bl
     r, calls = case(high, True, worse)
     assert calls == [False, True] and r.effects == ["a"] and r.message.startswith("high") and "not kept" in r.message
     assert r.second_search == "not kept"
+    # either run reports the better baseline of the two searches (the same model fitted to the same record)
+    low_base = rc.Step("baseline", {}, 5.0, 5.0, {}, "", [])  # the others' baselines read 9
+    r, _ = case(replace(high, baseline=low_base, regime_share={"stuck": 1.0}), True, better)
+    assert r.effects == ["b", "c"] and r.baseline.rmse == 5.0 and r.regime_share == {"stuck": 1.0}
+    r, _ = case(high, True, replace(worse, baseline=low_base))
+    assert r.effects == ["a"] and r.baseline.rmse == 5.0
 
 
 def test_cli_global_search_flag(tmp_path):
