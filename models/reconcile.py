@@ -1710,9 +1710,10 @@ def reconcile(
 def _search(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, split_seed: int) -> Reconciliation:
     """One draw of the training / held-out blocks: the search, and where it ends at twice the noise
     or more after a weak first step, the search again with the pairs in its first step
-    (``ReconcileConfig.retry_pairs``); the run whose final model fits the held-out blocks better.
-    Each search has its own pool (a pool serves the records of one search, see _FitPool); the second
-    takes the fits the first made from :data:`_MEMO`."""
+    (``ReconcileConfig.retry_pairs``); the run whose final model fits the held-out blocks better,
+    reporting the better baseline of the two searches.  Each search has its own pool (a pool serves
+    the records of one search, see _FitPool); the second takes the fits the first made from
+    :data:`_MEMO`."""
     token = _MEMO.set({})
     try:
         with _FitPool(cfg.threads) as pool:
