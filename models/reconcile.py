@@ -702,7 +702,11 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     neighbourhood: differential evolution (as :func:`_global_fit`, on the coarse copy of the record)
     over ``k`` within ±15 % of the slip jump's, ``F_s`` within 0.8–1.25 times, ``F_c / F_s`` from
     0.4 to 1, ``F_v`` from 0 to 0.15 s times ``k``, the bias within ``F_s / k`` of the slip jump's,
-    and ``v_s`` over three decades below the fastest slide; the other effects' parameters are held.
+    and ``v_s`` over three decades below the fastest slide, an accepted lag ``τ`` or dead time ``θ``
+    from 0 to twice its value (it was fitted beside a slip jump or the baseline, not beside the
+    curve, and the two trade off: unseen 139 #26, Stribeck + lag on ramps, named the slip jump
+    beside the lag at 7.1 × the noise with the lag held, both at 1.6 × with it searched; ACCURACY.md,
+    issue 8, session 42); the other effects' parameters are held.
     The Stribeck curve's negative damping makes the output error rough in ``F_c`` and ``F_s``: from
     a slip jump's fit with ``F_c`` 24 % above the truth the local fits end at 4–10 times the noise
     where the truth fits within 1.5 times (unseen 123 #6, 131 #4; ACCURACY.md, issue 8, session 24).
@@ -719,13 +723,15 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     vmax = max(r.speed_max for r in recs)
     bounds = [(0.85 * k, 1.15 * k), (0.8 * fs, 1.25 * fs), (0.4, 1.0), (0.0, 0.15 * k),
               (slip["bias"] - fs / k, slip["bias"] + fs / k), (math.log10(vmax) - 3.0, math.log10(vmax))]
+    path = [n for n in ("tau", "theta") if slip.get(n, 0.0) > 0.0]  # an accepted lag / dead time, searched too
+    bounds += [(0.0, 2.0 * slip[n]) for n in path]
     recs = [_decimate(r, cfg.global_coarse) for r in recs]
     masks = [np.flatnonzero(_fold_mask(r, fold)) for r in recs]
     noise = sum(m.size * r.sigma_x ** 2 for r, m in zip(recs, masks))
 
     def vals_of(z: np.ndarray) -> dict[str, float]:
         return {**slip, **rule, "k": z[0], "fc": z[2] * z[1], "dfs": (1.0 - z[2]) * z[1], "fv": z[3], "bias": z[4],
-                "vs": 10.0 ** z[5]}
+                "vs": 10.0 ** z[5], **{n: float(zi) for n, zi in zip(path, z[6:])}}
 
     def cost(z: np.ndarray) -> float:
         res = _residuals(vals_of(z), recs, cfg, dv)

@@ -1060,7 +1060,7 @@ def test_stribeck_search_about_a_slip_jump_fit_reaches_the_planted_curve():
     valve, rec = _steep_stribeck_ramps(30.0, 15)
     cfg = ReconcileConfig(sa=valve.sa, m=valve.m)
     dv = 0.01 * rec.speed_max
-    # the V/P lag of the record is known here (held by the search, as an accepted effect's parameters are)
+    # the record's V/P lag is an accepted lag here, known: the search and the fits take it as a start
     truth = dict(k=valve.k, fc=valve.fc, dfs=valve.fs - valve.fc, vs=valve.vs, fv=valve.fv, bias=valve.bias, tau=0.05,
                  nb=3.0, dv=dv)
 
@@ -1070,7 +1070,7 @@ def test_stribeck_search_about_a_slip_jump_fit_reaches_the_planted_curve():
     # a slip jump's fit of such a record: F_s about right, F_c 24 % high, no viscous friction
     slip = dict(truth, fc=1.24 * valve.fc, dfs=valve.fs - 1.24 * valve.fc, fv=0.0)
     slip.pop("vs")
-    names = ("k", "fc", "fv", "bias", "dfs", "vs")
+    names = ("k", "fc", "fv", "bias", "dfs", "vs", "tau")
     local = _fit({**slip, "vs": rec.speed_typ}, names, [rec], cfg, dv)
     found, _ = _stribeck_search(slip, [rec], cfg, dv, {"nb": 3.0, "dv": dv})
     found = _fit(found, names, [rec], cfg, dv).vals
@@ -1078,3 +1078,24 @@ def test_stribeck_search_about_a_slip_jump_fit_reaches_the_planted_curve():
     assert train_rms(found) < 1.3 * train_rms(truth)
     assert found["fc"] == pytest.approx(valve.fc, rel=0.15)
     assert found["fc"] + found["dfs"] == pytest.approx(valve.fs, rel=0.1)
+
+
+def test_stribeck_search_about_a_slip_jump_fit_also_searches_the_accepted_lag():
+    """A lag accepted before the slip jump was fitted beside a slip jump, not beside the Stribeck
+    curve; the curve's slides and the lag trade off (unseen 139 #26, Stribeck + lag on ramps: the
+    search with the lag held named a slip jump beside the lag at 7.1 × the noise).  The search
+    about the slip jump's fit (:func:`_stribeck_search`) also searches an accepted lag, over 0 to
+    twice its value, and finds the planted one.  Planted truth: the steep Stribeck valve behind the
+    50 ms lag above, the accepted lag 40 % short (30 ms).  (From this start the curve itself is not
+    reached at 50 generations: the full-rate refit ends at 1.8 times the truth's training RMS,
+    session 42; the search with the lag held at 30 ms cannot move it at all.)"""
+    valve, rec = _steep_stribeck_ramps(30.0, 15)
+    cfg = ReconcileConfig(sa=valve.sa, m=valve.m)
+    dv = 0.01 * rec.speed_max
+    truth = dict(k=valve.k, fc=valve.fc, dfs=valve.fs - valve.fc, vs=valve.vs, fv=valve.fv, bias=valve.bias, tau=0.05,
+                 nb=3.0, dv=dv)
+    slip = dict(truth, fc=1.24 * valve.fc, dfs=valve.fs - 1.24 * valve.fc, fv=0.0, tau=0.03)
+    slip.pop("vs")
+    found, _ = _stribeck_search(slip, [rec], cfg, dv, {"nb": 3.0, "dv": dv})
+    assert 0.0 <= found["tau"] <= 0.06  # within the searched range
+    assert found["tau"] == pytest.approx(0.05, rel=0.2)
