@@ -702,11 +702,13 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     neighbourhood: differential evolution (as :func:`_global_fit`, on the coarse copy of the record)
     over ``k`` within ±15 % of the slip jump's, ``F_s`` within 0.8–1.25 times, ``F_c / F_s`` from
     0.4 to 1, ``F_v`` from 0 to 0.15 s times ``k``, the bias within ``F_s / k`` of the slip jump's,
-    and ``v_s`` over three decades below the fastest slide, an accepted lag ``τ`` or dead time ``θ``
-    from 0 to twice its value (it was fitted beside a slip jump or the baseline, not beside the
-    curve, and the two trade off: unseen 139 #26, Stribeck + lag on ramps, named the slip jump
-    beside the lag at 7.1 × the noise with the lag held, both at 1.6 × with it searched; ACCURACY.md,
-    issue 8, session 42); the other effects' parameters are held.
+    and ``v_s`` over three decades below the fastest slide; the other effects' parameters are held.
+    Beside an accepted lag ``τ`` or dead time ``θ`` a second search also searches it, from 0 to
+    twice its value, and the better of the two is kept: the lag was fitted beside a slip jump or the
+    baseline, not beside the curve, and the two trade off (unseen 139 #26, Stribeck + lag on ramps,
+    named the slip jump beside the lag at 7.1 × the noise with the lag held, both at 1.6 × with it
+    searched); the search with the extra dimension alone reaches the curve less often at the same
+    generations (own record 49 lost its Stribeck; ACCURACY.md, issue 8, session 42).
     The Stribeck curve's negative damping makes the output error rough in ``F_c`` and ``F_s``: from
     a slip jump's fit with ``F_c`` 24 % above the truth the local fits end at 4–10 times the noise
     where the truth fits within 1.5 times (unseen 123 #6, 131 #4; ACCURACY.md, issue 8, session 24).
@@ -740,10 +742,16 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     def at_noise(intermediate_result) -> bool:  # nothing left to find below (1.1 × the noise)²
         return bool(intermediate_result.fun <= 1.21)
 
+    outs = []
     with ThreadPoolExecutor(max(1, cfg.threads)) as ex:
-        out = differential_evolution(cost, bounds, popsize=15, maxiter=cfg.stribeck_maxiter, tol=0.0, polish=False,
-                                     seed=0, init="sobol", updating="deferred", workers=ex.map, callback=at_noise)
-    found = vals_of(out.x), float(out.fun)
+        for nd in sorted({6, len(bounds)}):  # the lag / dead time held, then searched: the better kept
+            held = [(x, x) for x in np.array([0.0] * 6 + [slip[n] for n in path])[nd:]]
+            out = differential_evolution(lambda z: cost(np.r_[z, [h for h, _ in held]]), bounds[:nd], popsize=15,
+                                         maxiter=cfg.stribeck_maxiter, tol=0.0, polish=False, seed=0, init="sobol",
+                                         updating="deferred", workers=ex.map, callback=at_noise)
+            outs.append((float(out.fun), np.r_[out.x, [h for h, _ in held]]))
+    fun, x = min(outs, key=lambda o: o[0])
+    found = vals_of(x), fun
     if memo is not None:
         memo[key] = (dict(found[0]), found[1])
     return found
