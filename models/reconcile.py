@@ -745,11 +745,11 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     outs = []
     with ThreadPoolExecutor(max(1, cfg.threads)) as ex:
         for nd in sorted({6, len(bounds)}):  # the lag / dead time held, then searched: the better kept
-            held = [(x, x) for x in np.array([0.0] * 6 + [slip[n] for n in path])[nd:]]
-            out = differential_evolution(lambda z: cost(np.r_[z, [h for h, _ in held]]), bounds[:nd], popsize=15,
+            held = np.array([slip[n] for n in path])[nd - 6:]
+            out = differential_evolution(lambda z, h: cost(np.r_[z, h]), bounds[:nd], args=(held,), popsize=15,
                                          maxiter=cfg.stribeck_maxiter, tol=0.0, polish=False, seed=0, init="sobol",
                                          updating="deferred", workers=ex.map, callback=at_noise)
-            outs.append((float(out.fun), np.r_[out.x, [h for h, _ in held]]))
+            outs.append((float(out.fun), np.r_[out.x, held]))
     fun, x = min(outs, key=lambda o: o[0])
     found = vals_of(x), fun
     if memo is not None:
