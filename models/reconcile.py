@@ -263,7 +263,8 @@ class ReconcileConfig:
         against the current model's on the same blocks: where the single was cross-fitted, both folds
         against both folds (since session 41; before, against the current model's first fold alone,
         which can be far worse: unseen x187 #5, slip jump + dead time, 439 µm against 238 µm, so a dead
-        time at 181 µm was not weak and the search ended at 12 × the noise; with the pairs, 1.07 ×).
+        time at 181 µm was not weak and the search ended at 12 × the noise; with the pairs, 1.07 ×;
+        since session 43 the first search reaches that pair itself, by the Stribeck search beside the dead time).
         Measured on the 82 records of 119–185 and x187–x191 that end at twice the noise or more (the
         others cannot change): on 9 the second search now runs where it did not, or not where it
         did; x187 #5 gains its pair, 147 #28 (slip jump + deadband) refits from 3.9 to 1.4 × the

@@ -515,19 +515,27 @@ def test_a_search_that_ends_above_the_noise_after_a_weak_first_step_is_run_again
 
 def test_a_cross_fitted_first_step_is_weighed_against_the_current_models_two_folds():
     # unseen x187 #5 (independent simulator, a pair draw): a slip jump of 1.49 and a 39 ms dead time on
-    # random steps.  The baseline sits in a wrong basin (bias 4.1 mm against the planted 1.1); refitted in a
-    # better one, the dead time passes by the cross-fit and leaves most of the excess of the current model's
-    # two folds (held out 238 -> 181 µm, noise 14 µm), but was weighed against its first fold alone (439 µm), so
-    # the search was not run again with the pairs and ended at 12 times the noise.  Weighed on the same
-    # blocks it is weak, the pairs run, and the planted pair fits within 1.5 times the noise
+    # random steps.  The baseline sits in a wrong basin (bias 4.1 mm against the planted 1.1).  Refitted
+    # in a better one, the dead time passes by the cross-fit and leaves most of the excess of the current
+    # model's two folds (held out 238 -> 181 µm, noise 14 µm), so it is weak; against the current model's
+    # first fold alone (297 µm here, 439 µm in session 41) it was not, and until session 42 the search then
+    # ended at 12 times the noise without the second search.  Since the Stribeck search beside an accepted
+    # dead time (session 43) the first search reaches the planted pair itself (1.07 times the noise), so
+    # the second search is not needed here; the weighing is checked on the step's statistics.
     data, cfg = _unseen("x187:4")
     r = reconcile(data, config=cfg)
-    assert r.second_search == "kept" and set(r.effects) == {"slip_jump", "dead_time"}
+    assert set(r.effects) == {"slip_jump", "dead_time"}  # the planted pair
     assert r.final.rmse < 1.5 * r.noise_floor
-    assert "kept against the first search's dead_time (" in r.message
-    n2 = r.noise_floor**2  # a passing, cross-fitted dead time that leaves most of its reference's excess: weak
-    assert any(c.effect == "dead_time" and c.passed and c.cross_fitted
-               and c.heldout_rmse**2 - n2 > 0.5 * (c.ref_heldout_rmse**2 - n2) for rnd in r.rounds for c in rnd)
+    n2 = r.noise_floor**2
+    weak = [(c, rnd) for rnd in r.rounds for c in rnd if c.effect == "dead_time" and c.passed and c.cross_fitted
+            and c.heldout_rmse**2 >= 4 * n2 and c.heldout_rmse**2 - n2 > 0.5 * (c.ref_heldout_rmse**2 - n2)]
+    assert weak  # a passing, cross-fitted dead time that leaves most of its reference's excess: weak
+    # its reference is the current model's two folds, not the first fold the other candidates of the
+    # round are weighed on (against that one the same dead time would not be weak)
+    c, rnd = weak[0]
+    firsts = {o.ref_heldout_rmse for o in rnd if not o.cross_fitted and not o.replaces}
+    assert firsts and all(abs(f - c.ref_heldout_rmse) > 0.1 * c.ref_heldout_rmse for f in firsts)
+    assert any(c.heldout_rmse**2 - n2 <= 0.5 * (f**2 - n2) for f in firsts)
 
 
 @pytest.mark.slow
