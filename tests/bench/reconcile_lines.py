@@ -1,0 +1,105 @@
+"""The acceptance lines of issue 8 from stored results, without running ``reconcile``.
+
+ACCURACY.md quotes these lines after every change; until session 43 they were computed by scratch
+scripts outside the repository.  The results of ``accuracy_reconcile --json`` are stored in
+``tests/bench/results``; :data:`MAIN` holds every record of the hidden-effect suite (numbered
+draws 119-185, the own suite, the pair draws x187-x197) as main names them after session 43,
+and :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth
+simulated by the workflow from the smoothed recorded pressure, RMSE over the position noise).
+Files given on the command line replace the records of the same tags, in order: the lines of a
+branch from the records it re-ran.
+
+Lines, per group of records (numbered draws, own suite, x-draws):
+
+* singles named first, where the baseline misses by twice the noise or more (the issue's "effect
+  clearly above the noise"); and where the effect is visible (``visible``: the truth without
+  it, refitted, misses the training blocks by twice the noise or more);
+* clean records naming none;
+* pairs with both effects found: all, both visible, and both visible against the truth's own
+  error (each effect's absence costs twice the truth's RMSE or more: the truth reads several times
+  the noise where the smoothed pressure's noise moves a Stribeck valve's slips, ACCURACY.md
+  issue 8 session 43, so twice the noise is not yet visible there);
+* final RMSE at most half the baseline's (baseline at twice the noise or more), and the same where
+  the truth itself reads at most half the baseline (reachable by a fit within the model family).
+
+Run: ``.venv/bin/python -m tests.bench.reconcile_lines [RESULTS.json[.gz] ...]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results"
+MAIN = RESULTS / "reconcile_main_s43.json.gz"
+TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz")
+
+
+def load(path: Path) -> list | dict:
+    with (gzip.open(path, "rt") if str(path).endswith(".gz") else open(path)) as fh:
+        return json.load(fh)
+
+
+def group(tag: str) -> str:
+    head = tag.split(":")[0]
+    return "own suite" if head == "own" else "x-draws (pairs)" if head.startswith("x") else "numbered draws 119-185"
+
+
+def _share(ok: list[bool]) -> str:
+    return f"{sum(ok)}/{len(ok)} = {100 * sum(ok) / len(ok):.1f} %" if ok else "0/0"
+
+
+def lines(records: list[dict], truth: dict[str, float]) -> list[str]:
+    """The lines (module docstring) of one group of result records."""
+    out = []
+    singles = [r for r in records if r["kind"] == "single"]
+    if singles:
+        above = [r for r in singles if r["base"] >= 2 * r["noise"]]  # NaN (a refused record) is not above
+        vis = [r for r in singles if r.get("visible") and min(r["visible"].values()) >= 2]
+        first = [r["effects"][:1] == list(r["hidden"]) for r in above]
+        out.append(f"singles named first, baseline >= 2 x noise: {_share(first)}; visible: "
+                   f"{_share([r['effects'][:1] == list(r['hidden']) for r in vis])}")
+    clean = [r for r in records if r["kind"] == "clean"]
+    if clean:
+        out.append(f"clean, none named: {_share([not r['effects'] for r in clean])}")
+    pairs = [r for r in records if r["kind"] == "pair"]
+    if pairs:
+        def found(r: dict) -> bool:
+            return set(r["hidden"]) <= set(r["effects"])
+
+        vis = [r for r in pairs if r.get("visible") and min(r["visible"].values()) >= 2]
+        rel = [r for r in vis if r["tag"] in truth and min(r["visible"].values()) >= 2 * truth[r["tag"]]]
+        out.append(f"pairs, both found: {_share([found(r) for r in pairs])}; both visible (>= 2 x noise): "
+                   f"{_share([found(r) for r in vis])}; both visible against the truth (each >= 2 x the truth's RMSE): "
+                   f"{_share([found(r) for r in rel])}")
+    hid = [r for r in records if r["kind"] in ("single", "pair") and r["base"] >= 2 * r["noise"]]
+    if hid:
+        half = [r["final"] <= 0.5 * r["base"] for r in hid]
+        reach = [r for r in hid if r["tag"] in truth and truth[r["tag"]] * r["noise"] <= 0.5 * r["base"]]
+        out.append(f"final <= 0.5 x baseline: {_share(half)}; where the truth reads <= 0.5 x baseline: "
+                   f"{_share([r['final'] <= 0.5 * r['base'] for r in reach])} (not counted: {len(hid) - len(reach)} "
+                   "records whose truth reads more or has no stored ratio)")
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("results", nargs="*", help="accuracy_reconcile --json files replacing records of main by tag")
+    a = ap.parse_args(argv)
+    recs = {r["tag"]: r for r in load(MAIN)}
+    for path in a.results:
+        recs.update({r["tag"]: r for r in load(Path(path))})
+    truth: dict[str, float] = {}
+    for path in TRUTHS:
+        truth.update(load(path))
+    for name in ("numbered draws 119-185", "own suite", "x-draws (pairs)"):
+        sel = [r for r in recs.values() if group(r["tag"]) == name]
+        print(f"== {name}: {len(sel)} records")
+        for line in lines(sel, truth):
+            print("  " + line)
+
+
+if __name__ == "__main__":
+    main()
