@@ -139,10 +139,11 @@ def _spectral_excess(x) -> tuple[float, float]:
     """A statistic the gate does not use, probed as a candidate third detector (ACCURACY.md, issue
     3, session 43): the periodogram's excess over a power-law background in the core of each band
     candidate (Vaughan 2005, "A simple test for periodic signals in red noise", A&A 431:391-403: the
-    background ``exp(a + gamma) f^b`` fitted to ``log I`` outside the band, ``b`` clipped to
-    ``[-4, 0]`` as in :func:`pipeline.gate.power_law_background`; under the null ``I_j / S_j`` is
-    exponential).  Over the ``M`` bins within ``[0.8, 1.25] f0`` the summed ratio ``R`` is taken as
-    gamma with ``M / 1.5`` degrees of freedom (the Hann window correlates neighbouring bins).
+    background ``exp(a + gamma) f^b`` fitted to ``log I`` outside the band, the slope ``f^b`` the
+    gate's own, :func:`pipeline.gate.power_law_background`, the scale ``a`` fitted here; under the
+    null ``I_j / S_j`` is exponential).  Over the ``M`` bins within ``[0.8, 1.25] f0`` the summed
+    ratio ``R`` is taken as gamma with ``M / 1.5`` degrees of freedom (the Hann window correlates
+    neighbouring bins).
     Returns the largest over the candidates of ``(z, R / M)``: the one-sided z of the p-value
     (capped at p = 1e-300) and the mean excess factor."""
     import numpy as np
@@ -159,9 +160,9 @@ def _spectral_excess(x) -> tuple[float, float]:
         core = (f >= 0.8 * 2 * band[0]) & (f <= 1.25 * 2 * band[0])
         if out.sum() < 8 or not core.any():
             continue
-        b = float(np.clip(np.polyfit(np.log(f[out]), np.log(per[out]), 1)[0], -4.0, 0.0))
-        a = float(np.mean(np.log(per[out]) - b * np.log(f[out])))
-        ratio = float(np.sum(per[core] / (np.exp(a + np.euler_gamma) * f[core] ** b)))
+        bg = g.power_law_background(per, band)  # f^b
+        a = float(np.mean(np.log(per[out] / bg[out])))
+        ratio = float(np.sum(per[core] / (np.exp(a + np.euler_gamma) * bg[core])))
         m = int(core.sum())
         p = stats.gamma.sf(ratio, m / 1.5, scale=1.5)
         best = max(best, (float(-special.ndtri(max(p, 1e-300))), ratio / m))

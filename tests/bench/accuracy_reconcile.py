@@ -411,6 +411,16 @@ def run_case(case: dict, global_search: bool = False) -> dict:
 # ----------------------------------------------------------------------------- report
 
 
+def clear(r: dict) -> bool:
+    """The hidden effect is clearly above the noise: the baseline misses by twice the noise or more."""
+    return r["base"] >= 2.0 * r["noise"]
+
+
+def shown(r: dict) -> bool:
+    """Each hidden effect clearly visible (:func:`visibility` twice the noise or more)."""
+    return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
+
+
 def report(name: str, results: list[dict]) -> None:
     print(f"\n### {name}: {len(results)} records")
     singles = [r for r in results if r["kind"] in ("single", "sweep")]
@@ -427,12 +437,6 @@ def report(name: str, results: list[dict]) -> None:
     print("|---" * (len(cols) + 1) + "|")
     for row in rows:
         print(f"| {row} | " + " | ".join(str(conf[row][c]) for c in cols) + " |")
-
-    def clear(r):  # the hidden effect is clearly above the noise: the baseline misses by more than the noise
-        return r["base"] >= 2.0 * r["noise"]
-
-    def shown(r):  # each hidden effect clearly visible (see visibility)
-        return bool(r.get("visible")) and min(r["visible"].values()) >= 2.0
 
     above = [r for r in singles if clear(r)]
     for label, sel in (("all", singles), ("clearly above noise (baseline RMSE ≥ 2 × noise)", above),

@@ -28,9 +28,10 @@ Run: ``.venv/bin/python -m tests.bench.reconcile_lines [RESULTS.json[.gz] ...]``
 from __future__ import annotations
 
 import argparse
-import gzip
 import json
 from pathlib import Path
+
+from .accuracy_reconcile import _open, clear, shown
 
 RESULTS = Path(__file__).parent / "results"
 MAIN = RESULTS / "reconcile_main_s43.json.gz"
@@ -38,7 +39,7 @@ TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.j
 
 
 def load(path: Path) -> list | dict:
-    with (gzip.open(path, "rt") if str(path).endswith(".gz") else open(path)) as fh:
+    with _open(str(path), "r") as fh:
         return json.load(fh)
 
 
@@ -56,8 +57,8 @@ def lines(records: list[dict], truth: dict[str, float]) -> list[str]:
     out = []
     singles = [r for r in records if r["kind"] == "single"]
     if singles:
-        above = [r for r in singles if r["base"] >= 2 * r["noise"]]  # NaN (a refused record) is not above
-        vis = [r for r in singles if r.get("visible") and min(r["visible"].values()) >= 2]
+        above = [r for r in singles if clear(r)]  # NaN (a refused record) is not above
+        vis = [r for r in singles if shown(r)]
         first = [r["effects"][:1] == list(r["hidden"]) for r in above]
         out.append(f"singles named first, baseline >= 2 x noise: {_share(first)}; visible: "
                    f"{_share([r['effects'][:1] == list(r['hidden']) for r in vis])}")
@@ -69,12 +70,12 @@ def lines(records: list[dict], truth: dict[str, float]) -> list[str]:
         def found(r: dict) -> bool:
             return set(r["hidden"]) <= set(r["effects"])
 
-        vis = [r for r in pairs if r.get("visible") and min(r["visible"].values()) >= 2]
+        vis = [r for r in pairs if shown(r)]
         rel = [r for r in vis if r["tag"] in truth and min(r["visible"].values()) >= 2 * truth[r["tag"]]]
         out.append(f"pairs, both found: {_share([found(r) for r in pairs])}; both visible (>= 2 x noise): "
                    f"{_share([found(r) for r in vis])}; both visible against the truth (each >= 2 x the truth's RMSE): "
                    f"{_share([found(r) for r in rel])}")
-    hid = [r for r in records if r["kind"] in ("single", "pair") and r["base"] >= 2 * r["noise"]]
+    hid = [r for r in records if r["kind"] in ("single", "pair") and clear(r)]
     if hid:
         half = [r["final"] <= 0.5 * r["base"] for r in hid]
         reach = [r for r in hid if r["tag"] in truth and truth[r["tag"]] * r["noise"] <= 0.5 * r["base"]]
