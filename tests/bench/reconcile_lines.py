@@ -3,7 +3,8 @@
 ACCURACY.md quotes these lines after every change; until session 43 they were computed by scratch
 scripts outside the repository.  The results of ``accuracy_reconcile --json`` are stored in
 ``tests/bench/results``; :data:`MAIN` holds every record of the hidden-effect suite (numbered
-draws 119-185, the own suite, the pair draws x187-x197) as main names them after session 43,
+draws 119-185, the own suite, the pair draws x187-x197) as main names them after session 43, then
+the fresh draws 187 and 189 as session 44 ran them,
 and :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth
 simulated by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -34,8 +35,10 @@ from pathlib import Path
 from .accuracy_reconcile import _open, clear, shown
 
 RESULTS = Path(__file__).parent / "results"
-MAIN = RESULTS / "reconcile_main_s43.json.gz"
-TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz")
+MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44.json.gz")
+TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
+          RESULTS / "truth_187-189_s44.json.gz")
+NUMBERED = "numbered draws 119-189"
 
 
 def load(path: Path) -> list | dict:
@@ -45,7 +48,7 @@ def load(path: Path) -> list | dict:
 
 def group(tag: str) -> str:
     head = tag.split(":")[0]
-    return "own suite" if head == "own" else "x-draws (pairs)" if head.startswith("x") else "numbered draws 119-185"
+    return "own suite" if head == "own" else "x-draws (pairs)" if head.startswith("x") else NUMBERED
 
 
 def _share(ok: list[bool]) -> str:
@@ -89,13 +92,13 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("results", nargs="*", help="accuracy_reconcile --json files replacing records of main by tag")
     a = ap.parse_args(argv)
-    recs = {r["tag"]: r for r in load(MAIN)}
-    for path in a.results:
+    recs = {}
+    for path in (*MAIN, *a.results):
         recs.update({r["tag"]: r for r in load(Path(path))})
     truth: dict[str, float] = {}
     for path in TRUTHS:
         truth.update(load(path))
-    for name in ("numbered draws 119-185", "own suite", "x-draws (pairs)"):
+    for name in (NUMBERED, "own suite", "x-draws (pairs)"):
         sel = [r for r in recs.values() if group(r["tag"]) == name]
         print(f"== {name}: {len(sel)} records")
         for line in lines(sel, truth):
