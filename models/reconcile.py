@@ -1731,6 +1731,28 @@ def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Pr
                            f"{keep[worst][0]:.1f} for keeping it, the rest of the model unchanged)"))
         vals = keep[worst][1]
         effects.remove(worst)
+    noise_pow = sum(r.sigma_x**2 * r.x.size for r in recs) / sum(r.x.size for r in recs)
+    # then each effect accepted before the last one, with the rest of the model refitted on the
+    # training blocks without it: the forward search weighed it against the model of its time, and
+    # a later effect refitted without it may take its role (a dead time named before the lag it
+    # stands in for: unseen 177 #8, a hidden lag named dead_time, actuator_lag)
+    while len(effects) >= 2:
+        sc = _score(_residuals(vals, recs, cfg, dv), recs)
+        n_eff = _n_eff(sc, recs, cfg)
+        keep = {}
+        for e in effects[:-1]:
+            names = _BASE + tuple(n for x in effects if x != e for n in _effect_names(x))
+            v_wo = _fit(_without(vals, e, base_rule), names, recs, cfg, dv).vals
+            mse_wo = _score(_residuals(v_wo, recs, cfg, dv), recs).mse_h
+            keep[e] = (n_eff * math.log(mse_wo / sc.mse_h) - _n_params(e) * math.log(n_eff), v_wo,
+                       (mse_wo - sc.mse_h) / noise_pow)
+        worst = min(keep, key=lambda e: min(keep[e][0], keep[e][2] - cfg.min_gain))
+        if keep[worst][0] > 0 and keep[worst][2] >= cfg.min_gain:
+            break
+        out.append((worst, f"the later effects, refitted without it, fit the held-out blocks about as well (it removes "
+                           f"{keep[worst][2]:.1%} of the noise power, ΔBIC {keep[worst][0]:.1f} for keeping it)"))
+        vals = keep[worst][1]
+        effects.remove(worst)
     return vals, out
 
 
