@@ -1566,6 +1566,11 @@ def regime_table(res: list[np.ndarray], recs: list[Prepared]) -> tuple[dict[str,
     return rmse, share, {g: int(c) for g, c in zip(REGIMES, cnt) if c > 0}
 
 
+def _noise_var(recs: list[Prepared]) -> float:
+    """The position-noise variance of the records, pooled over all their samples."""
+    return sum(r.sigma_x**2 * r.x.size for r in recs) / sum(r.x.size for r in recs)
+
+
 def _where_missed(sc: _Score, recs: list[Prepared]) -> str:
     """Where the squared error scored in ``sc`` (:func:`_score`) lies, in words: the regime holding
     most of it, the number of blocks holding any of that regime, and how many of those are held out."""
@@ -1731,7 +1736,7 @@ def backward_eliminate(vals: dict[str, float], effects: list[str], recs: list[Pr
                            f"{keep[worst][0]:.1f} for keeping it, the rest of the model unchanged)"))
         vals = keep[worst][1]
         effects.remove(worst)
-    noise_pow = sum(r.sigma_x**2 * r.x.size for r in recs) / sum(r.x.size for r in recs)
+    noise_pow = _noise_var(recs)
     # then each effect accepted before the last one, with the rest of the model refitted on the
     # training blocks without it: the forward search weighed it against the model of its time, and
     # a later effect refitted without it may take its role (a dead time named before the lag it
@@ -1849,7 +1854,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # the record's slow sliding speeds (10th percentile of the Appendix-A speed while moving)
     v_slow = min(float(np.percentile(np.abs(r.xd[r.state != 0]), 10)) if np.any(r.state != 0) else 0.0 for r in recs)
     n_all = sum(r.x.size for r in recs)
-    sigma = math.sqrt(sum(r.sigma_x**2 * r.x.size for r in recs) / n_all)
+    sigma = math.sqrt(_noise_var(recs))
     noise_pow = max(sigma**2, 1e-24)
 
     def full_step(effect: str, vals_train: dict[str, float], free: tuple[str, ...], evidence: str,
