@@ -87,6 +87,9 @@ def _cpu() -> float:
 
 
 @pytest.mark.bench
+# six 60 s records: about 260 s on the AMD EPYC of sessions 37-44, over 300 s (the suite's
+# timeout) on the slower Intel Xeon of session 45, which then reported nothing
+@pytest.mark.timeout(1800)
 def test_reconcile_60s_record_under_60s():
     cases = {
         "square, V/P lag, hidden actuator_lag 0.2 s": (PRESETS["low"], square(periods=60.0 / 10.4), {"actuator_lag": (0.2,)}),
