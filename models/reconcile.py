@@ -930,6 +930,16 @@ def _fit_once(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepare
 #: computation on any thread), else None (one after the other).
 _THREAD_MAP: ContextVar[Callable | None] = ContextVar("_THREAD_MAP", default=None)
 
+#: Where :func:`reconcile` reports how far its search has got (its ``progress`` argument): one short
+#: line per stage, for a caller that shows it while it waits; None: nobody is told.
+_PROGRESS: ContextVar[Callable[[str], None] | None] = ContextVar("_PROGRESS", default=None)
+
+
+def _progress(stage: str) -> None:
+    say = _PROGRESS.get()
+    if say is not None:
+        say(stage)
+
 
 class _FitPool:
     """The fits of a multi-start (:func:`_fit`, each one a pure function of its start) on
@@ -1765,6 +1775,8 @@ def reconcile(
     data: ValveData,
     signature: ValveData | None = None,
     config: ReconcileConfig | None = None,
+    *,
+    progress: Callable[[str], None] | None = None,
 ) -> Reconciliation:
     """Run the discrepancy workflow on a record (and optionally a signature record, used as a
     second record in the fit and the held-out scoring).  See the module docstring.
@@ -1776,10 +1788,22 @@ def reconcile(
 
     The multi-start fits of one candidate are independent: they run on ``config.threads``
     worker processes (:class:`_FitPool`).  Each fit is the same computation in any process,
-    and the results are taken in the starts' order: the outcome does not depend on ``threads``."""
+    and the results are taken in the starts' order: the outcome does not depend on ``threads``.
+
+    ``progress``: called with one short line as each stage of the search begins (the baseline fit,
+    each round of candidates, the pairs, an accepted effect, ...), for a caller that shows how far
+    a run has got (a 60 s record at 1 ms takes up to a minute); it does not change the result."""
     cfg = config or ReconcileConfig()
-    with threadpool_limits(limits=1, user_api="blas"):
-        runs = [_search(data, signature, cfg, _split_seed(i)) for i in range(cfg.split_check)]
+    token = _PROGRESS.set(progress)
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            runs = []
+            for i in range(cfg.split_check):
+                if cfg.split_check > 1:
+                    _progress(f"draw {i + 1} of {cfg.split_check}")
+                runs.append(_search(data, signature, cfg, _split_seed(i)))
+    finally:
+        _PROGRESS.reset(token)
     first = runs[0]
     if cfg.split_check == 1:
         return first
@@ -1805,6 +1829,7 @@ def _search(data: ValveData, signature: ValveData | None, cfg: ReconcileConfig, 
         ratio = run.final.rmse / run.noise_floor
         if not (weak and ratio >= 2.0 and cfg.retry_pairs and cfg.pair_search and cfg.max_effects >= 2):
             return run
+        _progress("searching again, pairs first")
         with _FitPool(cfg.threads) as pool:
             again, _ = _reconcile(data, signature, cfg, pool, split_seed, weak_pairs=True)
     finally:
@@ -1891,6 +1916,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             fits.append(_fit(start, _BASE, recs, cfg, dv))
         return min(fits, key=lambda f: f.sse_train).vals
 
+    _progress("fitting the baseline")
     cur = baseline_fit(_BASE_K_SCALES)
     if _initial_baseline(recs, cfg)["k"] == _span_spring(recs, cfg):
         # the balances fell back on the frictionless spring, an upper bound of the true one: the
@@ -2230,6 +2256,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             break
         n_eff = _n_eff(sc_cur, recs, cfg)
         t_crit = cfg.alpha / len(todo)  # Bonferroni over the candidates of this step
+        _progress(f"round {len(rounds) + 1}: {len(todo)} candidates beside {' + '.join(accepted) or 'the baseline'} "
+                  f"({ratio:.1f} × noise)")
         fold2: list = []  # the current model fitted on the held-out blocks, scored on the training blocks
 
         def second_fold():
@@ -2369,6 +2397,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # generalise worse than the baseline alone and fit at the noise together (unseen PRBS
             # record, 44.5 µm against noise 13.9; ACCURACY.md, issue 8 session 11)
             pairs = [(a, b) for i, a in enumerate(todo) for b in todo[i + 1 :] if _EXCLUSIVE.get(a) != b]
+            _progress(f"round {len(rounds)}: {len(pairs)} pairs of effects together")
             single_bic = {c.effect: c.delta_bic for c, _, _ in cands}
             pcands = []
             for a, b in pairs:
@@ -2398,6 +2427,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # are narrow on some pairs (unseen slip jump + deadband on PRBS, Stribeck + lag on
             # ramps: the truth fits at the noise, every local start ends at 2-15 times it)
             rescues += 1
+            _progress(f"round {len(rounds)}: global search")
             rule = {"nb": cfg.stick_band, "dv": dv} if cfg.stick_band > 0 else {"dv": dv}
             for eff in todo:  # a second search after a refit repeats the same sets: each set once
                 effs = tuple(accepted) + (eff,)
@@ -2574,11 +2604,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # again); every other candidate chooses again in the next round, beside the new effect
         hold_rule(cur)
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
+        _progress(f"added {best_c.effect} ({steps[-1].rmse / sigma:.1f} × the noise)")
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
     # backward elimination: an accepted effect finer than the records resolve, or that the later
     # fits took back to (nearly) nothing, leaves the final model (unseen 157 #3: a deadband refitted
     # to 0 m and a dead time of 12 µs beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
+    _progress("weighing the effects again")
     cur, gone = backward_eliminate(cur, accepted, recs, cfg, dv, base_rule)
     if gone:
         first = min(accepted.index(e) for e, _ in gone)

@@ -339,6 +339,21 @@ def test_hidden_dead_time_is_named_and_the_gap_shrinks():
     assert r.final.rmse <= 0.5 * r.baseline.rmse
 
 
+def test_progress_names_each_stage_as_it_begins_and_changes_no_number():
+    rec = hidden_record(PRESETS["low"], SHORT, {"dead_time": (0.03,)}, seed=2)
+    data = ValveData(rec.t, rec.p, rec.x, "short")
+    said = []
+    r = reconcile(data, progress=said.append)
+    assert r.effects == ["dead_time"]  # the premise: one effect, found in the first round
+    assert said[0] == "fitting the baseline"
+    assert said[1].startswith("round 1: 5 candidates beside the baseline (")
+    added = [i for i, m in enumerate(said) if m.startswith("added dead_time (")]
+    assert len(added) == 1 and any(m.startswith("round ") for m in said[1:added[0]])
+    # the model is then within the noise: no further round, the search ends
+    assert said[added[0] + 1:] == ["weighing the effects again"]
+    assert reconcile(data).as_dict() == r.as_dict()
+
+
 def test_split_check_runs_the_search_on_other_draws_of_the_held_out_blocks():
     # the draws differ only in which blocks are held out, about half of them each time
     rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"dead_time": (0.08,)}, seed=3)

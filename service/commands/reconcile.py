@@ -15,6 +15,7 @@ import html
 import io
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -170,9 +171,13 @@ def run(args: argparse.Namespace) -> int:
     cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band,
                           global_search=args.global_search, split_check=args.split_check)
     n = data.t.size + (sig.t.size if sig is not None else 0)
-    # a spinner on a terminal (nothing when piped): a 60 s record at 1 ms takes up to a minute
-    with Console(stderr=True).status(f"reconciling {args.data.name}: {n} samples (up to a minute per 60 000)"):
-        r = reconcile(data, sig, cfg)
+    # a spinner on a terminal (nothing when piped): a 60 s record at 1 ms takes up to a minute; it
+    # says which stage the search is in and how long it has run
+    head = f"reconciling {args.data.name}: {n} samples (up to a minute per 60 000)"
+    t0 = time.monotonic()
+    with Console(stderr=True).status(head) as status:
+        r = reconcile(data, sig, cfg, progress=lambda stage: status.update(
+            f"{args.data.name}, {time.monotonic() - t0:.0f} s: {stage}"))
     lines = _lines(r)
     print("\n".join(lines))
     if args.json is not None:
