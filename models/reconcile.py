@@ -1792,7 +1792,7 @@ def reconcile(
 
     ``progress``: called with one short line as each stage of the search begins (the baseline fit,
     each round of candidates, the pairs, an accepted effect, ...), for a caller that shows how far
-    a run has got (a 60 s record at 1 ms takes up to a minute); it does not change the result."""
+    a run has got (a 60 s record at 1 ms takes a minute or two on 2 cores); it does not change the result."""
     cfg = config or ReconcileConfig()
     token = _PROGRESS.set(progress)
     try:
@@ -2604,7 +2604,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         # again); every other candidate chooses again in the next round, beside the new effect
         hold_rule(cur)
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
-        _progress(f"added {best_c.effect} ({steps[-1].rmse / sigma:.1f} × the noise)")
+        _progress(f"added {best_c.effect} ({steps[-1].rmse / sigma:.1f} × noise)")
     if not message:
         message = f"stopped after {len(accepted)} effect(s)"
     # backward elimination: an accepted effect finer than the records resolve, or that the later

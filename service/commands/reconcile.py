@@ -171,9 +171,9 @@ def run(args: argparse.Namespace) -> int:
     cfg = ReconcileConfig(sa=args.area, m=args.mass, threads=args.threads, stick_band=args.stick_band,
                           global_search=args.global_search, split_check=args.split_check)
     n = data.t.size + (sig.t.size if sig is not None else 0)
-    # a spinner on a terminal (nothing when piped): a 60 s record at 1 ms takes up to a minute; it
-    # says which stage the search is in and how long it has run
-    head = f"reconciling {args.data.name}: {n} samples (up to a minute per 60 000)"
+    # a spinner on a terminal (nothing when piped): a 60 s record at 1 ms takes a minute or two on 2
+    # cores; it says which stage the search is in and how long it has run
+    head = f"reconciling {args.data.name}: {n} samples (a minute or two per 60 000)"
     t0 = time.monotonic()
     with Console(stderr=True).status(head) as status:
         r = reconcile(data, sig, cfg, progress=lambda stage: status.update(
