@@ -34,3 +34,15 @@ def test_lines_count_each_rule_by_hand():
     # baseline on 1:0 (1 <= 2.5), 1:6 (1.1 <= 4.5) and 1:7 (4 <= 4), not on 1:1 (6.3 > 3)
     assert out[3] == ("final <= 0.5 x baseline: 2/4 = 50.0 %; where the truth reads <= 0.5 x baseline: 2/3 = 66.7 % "
                       "(not counted: 1 records whose truth reads more or has no stored ratio)")
+
+
+def test_truth_files_are_read_in_either_stored_form():
+    # what accuracy_reconcile --truth --json writes (a list of records, one refused: NaN) and the
+    # {tag: ratio} dict of the older stored files give the same map
+    from tests.bench.reconcile_lines import truth_ratios
+
+    written = [{"tag": "3:0", "kind": "single", "truth": 1.25, "error": ""},
+               {"tag": "3:1", "kind": "clean", "truth": float("nan"), "error": "ModelConfigError(...)"}]
+    got = truth_ratios(written)
+    assert list(got) == ["3:0", "3:1"] and got["3:0"] == 1.25 and got["3:1"] != got["3:1"]
+    assert truth_ratios({"3:0": 1.25}) == {"3:0": 1.25}

@@ -52,6 +52,13 @@ def load(path: Path) -> list | dict:
         return json.load(fh)
 
 
+def truth_ratios(stored: list | dict) -> dict[str, float]:
+    """``{tag: truth ratio}`` of a stored truth file: the ``accuracy_reconcile --truth --json`` list
+    of records as written, or the ``{tag: ratio}`` dict the files of sessions 40-49 hold (converted
+    by hand from that list)."""
+    return dict(stored) if isinstance(stored, dict) else {r["tag"]: r["truth"] for r in stored}
+
+
 def group(tag: str) -> str:
     head = tag.split(":")[0]
     return "own suite" if head == "own" else "x-draws (pairs)" if head.startswith("x") else NUMBERED
@@ -103,7 +110,7 @@ def main(argv: list[str] | None = None) -> None:
         recs.update({r["tag"]: r for r in load(Path(path))})
     truth: dict[str, float] = {}
     for path in TRUTHS:
-        truth.update(load(path))
+        truth.update(truth_ratios(load(path)))
     for name in (NUMBERED, "own suite", "x-draws (pairs)"):
         sel = [r for r in recs.values() if group(r["tag"]) == name]
         print(f"== {name}: {len(sel)} records")
