@@ -591,7 +591,32 @@ def _null(vals: dict[str, float], effect: str, recs: list[Prepared]) -> bool:
 
 def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
     """Measured minus simulated position of each record (:func:`models.valve_effects.residual_effects`:
-    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies)."""
+    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies).
+
+    The latest few are kept (:data:`_RESIDUALS`, read-only arrays): the search asks again for the
+    residuals of a model it fitted (the fold errors of a fit's end, a refinement's start), 6 % of
+    the simulations of a 60 s record (BENCHMARKS.md, issue 8, session 50)."""
+    key = (tuple(sorted(vals.items())), tuple(map(id, recs)), id(cfg), dv)
+    hit = _RESIDUALS.get(key)
+    if hit is not None and hit[1] is cfg and all(a is b for a, b in zip(hit[0], recs)):
+        return list(hit[2])
+    res = _simulated_residuals(vals, recs, cfg, dv)
+    for e in res:
+        e.flags.writeable = False
+    if len(_RESIDUALS) >= _RESIDUALS_MAX:
+        _RESIDUALS.clear()
+    _RESIDUALS[key] = (list(recs), cfg, res)
+    return list(res)
+
+
+#: The latest results of :func:`_residuals` (key: the parameters and the ids of the records and the
+#: config; value: those objects, to tell a reused id, and the residuals), at most
+#: :data:`_RESIDUALS_MAX` of them, in each process.
+_RESIDUALS: dict[tuple, tuple[list, ReconcileConfig, list[np.ndarray]]] = {}
+_RESIDUALS_MAX = 16
+
+
+def _simulated_residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
     valve = _to_valve(vals, cfg, dv)
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
@@ -601,10 +626,36 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
         # sticks falsely in a slow slide: 15.5 times the noise, 1.16 delayed; ACCURACY.md sessions 19–20)
         if not (nb > 0 and r.p_noise is not None):
             return r.no_band
-        return actuator_pressure(nb * r.sa * r.p_noise, r.dt, theta=valve.theta)  # the band itself at theta = 0
+        return _path(r.p_noise, r.dt, 0.0, valve.theta, nb * r.sa)  # the band itself at theta = 0
 
     return [residual_effects(valve, r.p_smooth, r.dt, r.x, x0_meas=r.x0, rest_meas=r.rest, band=band(r),
-                             substeps=cfg.substeps, fine=r.fine) for r in recs]
+                             substeps=cfg.substeps, fine=r.fine, p_act=_path(r.p_smooth, r.dt, valve.tau, valve.theta))
+            for r in recs]
+
+
+#: The latest results of :func:`_path` (key: the array's id and the arguments; value: the array
+#: itself, to tell a reused id, and the result), at most :data:`_PATHS_MAX` of them.
+_PATHS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+_PATHS_MAX = 32
+
+
+def _path(p: np.ndarray, dt: float, tau: float, theta: float, scale: float = 1.0) -> np.ndarray:
+    """``actuator_pressure(scale * p, dt, tau, theta)``, the same array for the same arguments while
+    they are among the latest few: the columns of a fit's Jacobian that move no timing parameter, and
+    every simulation of a fit that frees none, drive the valve with one pressure (a 60 s record's
+    lag and dead time took 3.5 % of a reconcile's time; BENCHMARKS.md, issue 8, session 50).  The
+    result is shared: nobody writes to it (the simulator reads it)."""
+    if scale == 1.0 and not (tau > 0 or theta > 0):
+        return p
+    key = (id(p), dt, tau, theta, scale)
+    hit = _PATHS.get(key)
+    if hit is not None and hit[0] is p:
+        return hit[1]
+    out = actuator_pressure(scale * p if scale != 1.0 else p, dt, tau, theta)
+    if len(_PATHS) >= _PATHS_MAX:
+        _PATHS.clear()
+    _PATHS[key] = (p, out)
+    return out
 
 
 def _bounds(name: str, vals: dict[str, float], recs: list[Prepared]) -> tuple[float, float, float]:
@@ -947,8 +998,8 @@ class _FitPool:
 
     Processes, not threads: a fit's Python part (``least_squares``, the parameter packing) holds
     the GIL, which left two threads at 1.45× of one (BENCHMARKS.md, issue 8 session 8).  The
-    workers are started at the first batch of two or more fits (a record that stops at the
-    baseline never starts them) and forked from the caller where the platform can fork: they
+    workers are started at the first batch of two or more fits (the baseline's multi-start) and
+    forked from the caller where the platform can fork: they
     start at once, with the compiled kernels loaded and the records in memory (``forkserver`` or
     ``spawn`` would re-import the caller's main script, which a script without a
     ``__main__`` guard does not survive, and load numba's cache again in every worker).  Each
@@ -956,9 +1007,11 @@ class _FitPool:
     A fit computes the same numbers in any process: the outcome does not depend on ``workers``.
     ``workers = 1``: every fit runs in the calling process.
 
-    A fit that runs alone in the calling process (the baseline's, a refinement, a swap model's)
+    A fit that runs alone in the calling process (a refinement, a swap model's, a step's refit)
     evaluates the columns of its finite-difference Jacobian on ``workers`` threads meanwhile
-    (:data:`_THREAD_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
+    (:data:`_THREAD_MAP`, ``least_squares(workers=...)``): the same numbers, in order.  So does a
+    worker while fewer than ``workers`` workers are fitting (the last fits of a batch, whose
+    fellows have finished; a shared count of the busy workers tells)."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
@@ -983,8 +1036,9 @@ class _FitPool:
             return [_fit_once(v, n, recs, cfg, dv, use=u, max_nfev=m, stride_s=s) for v, n, u, m, s in tasks]
         if self._pool is None:
             ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+            busy = ctx.Value("i", 0)  # how many workers are fitting now
             self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_init,
-                                             initargs=(recs, cfg, dv))
+                                             initargs=(recs, cfg, dv, busy, self.workers))
             self._recs = recs
         elif recs is not self._recs:
             raise ModelConfigError("_FitPool: the workers serve the records of one reconcile call")
@@ -1006,21 +1060,34 @@ class _FitPool:
             self._threads = None
 
 
-_WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
+_WORKER: tuple = ()  # a worker process's (records, config, DV, busy count) (see _FitPool)
 
 
-def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
+def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float, busy, workers: int) -> None:
     global _WORKER
     threadpool_limits(limits=1, user_api="blas")
-    _THREAD_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
+    threads = ThreadPoolExecutor(workers)
+
+    def columns(f, points):
+        # a worker whose fellows wait for the batch's last fits evaluates its Jacobian's columns on
+        # the idle cores (the same numbers, in order); while all fit, one after the other
+        return threads.map(f, points) if busy.value < workers else map(f, points)
+
+    _THREAD_MAP.set(columns)  # a forked worker inherits the caller's setting, not its threads
     _MEMO.set(None)  # and the caller's memo, which only the caller keeps
-    _WORKER = (recs, cfg, dv)
+    _WORKER = (recs, cfg, dv, busy)
 
 
 def _worker_fit(task: tuple) -> _Fit:
-    recs, cfg, dv = _WORKER
+    recs, cfg, dv, busy = _WORKER
     vals, names, use, max_nfev, stride_s = task
-    return _fit_once(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
+    with busy.get_lock():
+        busy.value += 1
+    try:
+        return _fit_once(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
+    finally:
+        with busy.get_lock():
+            busy.value -= 1
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
@@ -1907,13 +1974,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # unless a later fit chooses again (a friction candidate, see _grid, or an effect beside an
     # accepted friction effect, see plain_fit)
     def baseline_fit(scales: tuple[float, ...]) -> dict[str, float]:
-        fits = []
-        for rule in (_stick_rules(cfg, dv) if cfg.stick_band > 0 else [{}]):
-            starts = [_fit({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, recs, cfg, dv, use="all",
-                           max_nfev=cfg.max_nfev // 2) for ks in scales]
-            start = min(starts, key=lambda f: f.sse_train).vals
-            start = _fit(start, _BASE, recs, cfg, dv, use="all", max_nfev=2 * cfg.max_nfev).vals
-            fits.append(_fit(start, _BASE, recs, cfg, dv))
+        # for each stick rule: short fits on the whole record from every spring scale, the best
+        # refined there, then fitted on the training blocks; the rules side by side on the workers
+        rules = _stick_rules(cfg, dv) if cfg.stick_band > 0 else [{}]
+        shorts = pool.fits([({**_initial_baseline(recs, cfg, k_scale=ks), **rule}, _BASE, "all", cfg.max_nfev // 2, 0.004)
+                            for rule in rules for ks in scales], recs, cfg, dv)
+        starts = [min(shorts[j * len(scales):(j + 1) * len(scales)], key=lambda f: f.sse_train).vals
+                  for j in range(len(rules))]
+        starts = pool.fits([(v, _BASE, "all", 2 * cfg.max_nfev, 0.004) for v in starts], recs, cfg, dv)
+        fits = pool.fits([(f.vals, _BASE, "train", None, 0.004) for f in starts], recs, cfg, dv)
         return min(fits, key=lambda f: f.sse_train).vals
 
     _progress("fitting the baseline")

@@ -574,13 +574,15 @@ def _kernel(valve: EffectValve, pa: np.ndarray, dt: float, x0: float, rest: np.n
 
 def residual_effects(valve: EffectValve, p: np.ndarray, dt: float, x_meas: np.ndarray, *, x0_meas: float,
                      rest_meas: np.ndarray, band: np.ndarray, substeps: int = 1,
-                     fine: np.ndarray = _NO_MEAS) -> np.ndarray:
+                     fine: np.ndarray = _NO_MEAS, p_act: np.ndarray | None = None) -> np.ndarray:
     """``x_meas − simulate_effects(valve, p, dt, x0_meas=x0_meas, rest_meas=rest_meas, band=band,
     substeps=substeps, fine=fine).x_meas``, bit for bit, without its input checks and array
     copies: for a fit that simulates one checked record hundreds of times
     (:mod:`models.reconcile`).  ``p``, ``x_meas``, ``rest_meas``, ``band`` and ``fine`` (if given)
-    are contiguous float arrays of one length (``band`` one force per sample)."""
-    pa = actuator_pressure(p, dt, valve.tau, valve.theta)
+    are contiguous float arrays of one length (``band`` one force per sample).  ``p_act``: the
+    caller's ``actuator_pressure(p, dt, valve.tau, valve.theta)``, if it has it (a fit's
+    Jacobian column that moves no timing parameter drives the valve with the same pressure)."""
+    pa = actuator_pressure(p, dt, valve.tau, valve.theta) if p_act is None else p_act
     return _kernel(valve, pa, dt, float(x0_meas) + valve.bias, rest_meas, band, substeps, x_meas, fine)[2]
 
 
