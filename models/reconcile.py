@@ -591,32 +591,7 @@ def _null(vals: dict[str, float], effect: str, recs: list[Prepared]) -> bool:
 
 def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
     """Measured minus simulated position of each record (:func:`models.valve_effects.residual_effects`:
-    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies).
-
-    The latest few are kept (:data:`_RESIDUALS`, read-only arrays): the search asks again for the
-    residuals of a model it fitted (the fold errors of a fit's end, a refinement's start), 6 % of
-    the simulations of a 60 s record (BENCHMARKS.md, issue 8, session 50)."""
-    key = (tuple(sorted(vals.items())), tuple(map(id, recs)), id(cfg), dv)
-    hit = _RESIDUALS.get(key)
-    if hit is not None and hit[1] is cfg and all(a is b for a, b in zip(hit[0], recs)):
-        return list(hit[2])
-    res = _simulated_residuals(vals, recs, cfg, dv)
-    for e in res:
-        e.flags.writeable = False
-    if len(_RESIDUALS) >= _RESIDUALS_MAX:
-        _RESIDUALS.clear()
-    _RESIDUALS[key] = (list(recs), cfg, res)
-    return list(res)
-
-
-#: The latest results of :func:`_residuals` (key: the parameters and the ids of the records and the
-#: config; value: those objects, to tell a reused id, and the residuals), at most
-#: :data:`_RESIDUALS_MAX` of them, in each process.
-_RESIDUALS: dict[tuple, tuple[list, ReconcileConfig, list[np.ndarray]]] = {}
-_RESIDUALS_MAX = 16
-
-
-def _simulated_residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> list[np.ndarray]:
+    :func:`models.valve_effects.simulate_effects` without its per-call checks and copies)."""
     valve = _to_valve(vals, cfg, dv)
     nb = vals.get("nb", cfg.stick_band)  # the stick band in noise standard deviations
 
@@ -642,9 +617,9 @@ _PATHS_MAX = 32
 def _path(p: np.ndarray, dt: float, tau: float, theta: float, scale: float = 1.0) -> np.ndarray:
     """``actuator_pressure(scale * p, dt, tau, theta)``, the same array for the same arguments while
     they are among the latest few: the columns of a fit's Jacobian that move no timing parameter, and
-    every simulation of a fit that frees none, drive the valve with one pressure (a 60 s record's
-    lag and dead time took 3.5 % of a reconcile's time; BENCHMARKS.md, issue 8, session 50).  The
-    result is shared: nobody writes to it (the simulator reads it)."""
+    every simulation of a fit that frees none, drive the valve with one pressure (159 #4 at 60 s:
+    11 525 computations instead of 36 322, 3.4 % less CPU; BENCHMARKS.md, issue 8, session 50).
+    The result is shared: nobody writes to it (the simulator reads it)."""
     if scale == 1.0 and not (tau > 0 or theta > 0):
         return p
     key = (id(p), dt, tau, theta, scale)
@@ -1009,9 +984,7 @@ class _FitPool:
 
     A fit that runs alone in the calling process (a refinement, a swap model's, a step's refit)
     evaluates the columns of its finite-difference Jacobian on ``workers`` threads meanwhile
-    (:data:`_THREAD_MAP`, ``least_squares(workers=...)``): the same numbers, in order.  So does a
-    worker while fewer than ``workers`` workers are fitting (the last fits of a batch, whose
-    fellows have finished; a shared count of the busy workers tells)."""
+    (:data:`_THREAD_MAP`, ``least_squares(workers=...)``): the same numbers, in order."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
@@ -1036,9 +1009,8 @@ class _FitPool:
             return [_fit_once(v, n, recs, cfg, dv, use=u, max_nfev=m, stride_s=s) for v, n, u, m, s in tasks]
         if self._pool is None:
             ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-            busy = ctx.Value("i", 0)  # how many workers are fitting now
             self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_init,
-                                             initargs=(recs, cfg, dv, busy, self.workers))
+                                             initargs=(recs, cfg, dv))
             self._recs = recs
         elif recs is not self._recs:
             raise ModelConfigError("_FitPool: the workers serve the records of one reconcile call")
@@ -1060,34 +1032,21 @@ class _FitPool:
             self._threads = None
 
 
-_WORKER: tuple = ()  # a worker process's (records, config, DV, busy count) (see _FitPool)
+_WORKER: tuple = ()  # a worker process's (records, config, DV) (see _FitPool)
 
 
-def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float, busy, workers: int) -> None:
+def _worker_init(recs: list[Prepared], cfg: ReconcileConfig, dv: float) -> None:
     global _WORKER
     threadpool_limits(limits=1, user_api="blas")
-    threads = ThreadPoolExecutor(workers)
-
-    def columns(f, points):
-        # a worker whose fellows wait for the batch's last fits evaluates its Jacobian's columns on
-        # the idle cores (the same numbers, in order); while all fit, one after the other
-        return threads.map(f, points) if busy.value < workers else map(f, points)
-
-    _THREAD_MAP.set(columns)  # a forked worker inherits the caller's setting, not its threads
+    _THREAD_MAP.set(None)  # a forked worker inherits the caller's setting, not its threads
     _MEMO.set(None)  # and the caller's memo, which only the caller keeps
-    _WORKER = (recs, cfg, dv, busy)
+    _WORKER = (recs, cfg, dv)
 
 
 def _worker_fit(task: tuple) -> _Fit:
-    recs, cfg, dv, busy = _WORKER
+    recs, cfg, dv = _WORKER
     vals, names, use, max_nfev, stride_s = task
-    with busy.get_lock():
-        busy.value += 1
-    try:
-        return _fit_once(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
-    finally:
-        with busy.get_lock():
-            busy.value -= 1
+    return _fit_once(vals, names, recs, cfg, dv, use=use, max_nfev=max_nfev, stride_s=stride_s)
 
 
 def _initial_baseline(recs: list[Prepared], cfg: ReconcileConfig, tau: float = 0.0, theta: float = 0.0,
