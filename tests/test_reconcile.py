@@ -71,6 +71,17 @@ def test_clean_record_names_no_effect():
     assert set(r.regime_share) <= set(REGIMES) and sum(r.regime_share.values()) == pytest.approx(1.0)
 
 
+def test_a_search_stopped_by_its_effect_limit_says_the_model_still_misses():
+    # planted truth: the dead time of the test below, 50 ms, misses the baseline by several times the
+    # noise; with no effect allowed (max_effects = 0) the search stops at the baseline, and that is
+    # the limit's doing, not "no missing effect found"
+    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"dead_time": (0.05,)}, seed=3)
+    r = reconcile(ValveData(rec.t, rec.p, rec.x, "short"), config=ReconcileConfig(max_effects=0))
+    assert r.effects == [] and r.baseline.rmse > 4 * r.noise_floor
+    assert "no missing effect found" not in r.message
+    assert r.message.startswith("stopped after 0 effect(s), the most max_effects allows; the model still misses the data")
+
+
 def test_a_misfit_no_candidate_explains_is_not_reported_as_nothing_missing():
     # planted truth: a dead time of 50 ms after command steps, which a deadband cannot produce (it
     # delays nothing on the first step, nor a step in the direction of the last); with the deadband
