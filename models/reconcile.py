@@ -611,14 +611,14 @@ def _residuals(vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfi
 #: The latest results of :func:`_path` (key: the array's id and the arguments; value: the array
 #: itself, to tell a reused id, and the result), at most :data:`_PATHS_MAX` of them.
 _PATHS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-_PATHS_MAX = 32
+_PATHS_MAX = 8  # each a record long (159 #4 at 60 s: 12 414 of 36 322 computations left; 11 525 with 32)
 
 
 def _path(p: np.ndarray, dt: float, tau: float, theta: float, scale: float = 1.0) -> np.ndarray:
     """``actuator_pressure(scale * p, dt, tau, theta)``, the same array for the same arguments while
     they are among the latest few: the columns of a fit's Jacobian that move no timing parameter, and
     every simulation of a fit that frees none, drive the valve with one pressure (159 #4 at 60 s:
-    11 525 computations instead of 36 322, 3.4 % less CPU; BENCHMARKS.md, issue 8, session 50).
+    12 414 computations instead of 36 322; BENCHMARKS.md, issue 8, session 50).
     The result is shared: nobody writes to it (the simulator reads it)."""
     if scale == 1.0 and not (tau > 0 or theta > 0):
         return p
