@@ -1940,8 +1940,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                             for rule in rules for ks in scales], recs, cfg, dv)
         starts = [min(shorts[j * len(scales):(j + 1) * len(scales)], key=lambda f: f.sse_train).vals
                   for j in range(len(rules))]
-        starts = pool.fits([(v, _BASE, "all", 2 * cfg.max_nfev, 0.004) for v in starts], recs, cfg, dv)
-        fits = pool.fits([(f.vals, _BASE, "train", None, 0.004) for f in starts], recs, cfg, dv)
+        refined = pool.fits([(v, _BASE, "all", 2 * cfg.max_nfev, 0.004) for v in starts], recs, cfg, dv)
+        fits = pool.fits([(f.vals, _BASE, "train", None, 0.004) for f in refined], recs, cfg, dv)
         return min(fits, key=lambda f: f.sse_train).vals
 
     _progress("fitting the baseline")
