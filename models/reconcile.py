@@ -49,7 +49,8 @@ missing effect explains it, and how much does adding it shrink the gap.
    from its training fit, which if anything favours it on the training blocks: conservative.)  All four tests are then taken over both folds pooled: every
    block carries an improvement, each scored by fits that never saw it.  An effect that acts at
    a few reversals or steps gets twice the blocks to show in (the first fold alone left ~12
-   non-zero block differences out of 60 on an ISA-step record with a deadband).
+   non-zero block differences out of 60 on an ISA-step record with a deadband).  Where the first fold
+   passes and predicts the held-out blocks at the noise, it decides (see ``cross_fit``).
 
    Each candidate is fitted from several starts (:func:`_grid`: sizes of the effect, the current
    parameters and fresh force-balance starts; ``slip_jump`` / ``stribeck`` also with DV at a
@@ -156,10 +157,13 @@ class ReconcileConfig:
     cross_fit : two-fold cross-fit of the held-out test: a candidate that passes the BIC,
         relevance and regime tests on the held-out blocks (significant there or not) is fitted again
         on the held-out blocks (and the current model too) and scored on the training blocks; both
-        folds' blocks are tested together, and the pooled tests decide.  A candidate whose second
-        fold the held-out blocks do not pin down fails them even where its first fold fits at the
-        noise (unseen 155 #25: a dead time beside a slip jump, first fold 1.01 times the noise; the
-        second fold's F_s − F_c moved by 6 % and the training blocks read 14 times the noise).
+        folds' blocks are tested together, and the pooled tests decide, except where the first fold
+        passes every test and predicts the held-out blocks at the noise (below ``1 + min_gain``
+        times its power) from a current model at twice the noise or more in both folds: no second
+        fold can show more than that, and one the held-out blocks do not pin down failed such candidates (unseen
+        155 #25: a dead time beside a slip jump, first fold 1.01 times the noise; the second fold's
+        F_s 6 % lower, F_s − F_c 24 %, and the training blocks read 14 times the noise).  The first
+        fold then decides; the pooled RMSE it overruled is kept (``Candidate.overruled_pooled_rmse``).
     stick_band : width of the stick band of the fitted models, in standard deviations of the
         recorded-pressure noise left after smoothing, as a force (``b = stick_band·σ_p·S_a`` per
         sample, :func:`smooth_pressure` and :func:`models.valve_effects.simulate_effects`): the
@@ -2332,7 +2336,11 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             overruled = math.nan
             if cfg.cross_fit and all(r.startswith("held-out block improvement") for r in reasons):
                 # the first fold passes every test and predicts the held-out blocks at the noise from a
-                # model clearly above it (judge's noise test): no second fold can show more than that
+                # model clearly above it (judge's noise test), and the current model stays clearly above
+                # it in the second fold too: no second fold can show more than that.  (A current model
+                # that fits the second fold well was merely fitted badly in the first: unseen clean
+                # 149 #22, a baseline at 2.9 times the noise held out that a 7 ms lag brought to 1.04;
+                # pooled, the lag is not needed)
                 at_noise = not reasons and ref.mse_h >= 4.0 * noise_pow and sc.mse_h < (1.0 + cfg.min_gain) * noise_pow
                 first = (ref, sc, ne, withs, p_add, dbic, t, gain, in_pred, reasons)
                 cur2, cur2_sse, sc_cur2 = second_fold()
@@ -2345,7 +2353,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                     p_add = max(p_add, p2)
                     dbic, t, gain, in_pred, reasons = judge(eff, withs, p_add, ref, sc, ne, t_crit)
                     crossed = True
-                    if reasons and at_noise:
+                    if reasons and at_noise and sc_cur2.mse_h >= 4.0 * noise_pow:
                         # the second fold fails where the first fits at the noise: the held-out blocks did
                         # not pin the model down for the training blocks (unseen 155 #25, a dead time beside
                         # a slip jump: first fold 1.01 times the noise, the second fold's F_s - F_c 24 % off
