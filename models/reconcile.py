@@ -303,9 +303,6 @@ class ReconcileConfig:
         under every draw had been hidden on those runs, against 13 of 20 named under only some;
         with three draws on four fresh unseen draws of the bench, 67 of 70 against 8 of 23
         (ACCURACY.md, issue 8, session 22).
-    balanced_split : draw the training / held-out blocks by :func:`balanced_split` (every regime held
-        by a few blocks in both halves) instead of the one seeded draw.  Off by default: measured
-        in session 53 on part of the records it changes only (ACCURACY.md, issue 8, session 53).
     """
 
     sa: float = SA_M2
@@ -333,7 +330,6 @@ class ReconcileConfig:
     retry_pairs: bool = True
     noise_test: bool = True
     split_check: int = 1
-    balanced_split: bool = False
 
     def __post_init__(self) -> None:
         for name in ("sa", "m", "block_s", "alpha", "min_gain"):
@@ -530,66 +526,9 @@ class Prepared:
 _SPLIT_SEED = 8
 
 
-#: A regime held by this many blocks or fewer (and at least two) is spread over both halves by
-#: :func:`balanced_split`; a commoner one falls into both halves by itself.
-_RARE_BLOCKS = 12
-#: Draws :func:`balanced_split` makes before it keeps the most even one.
-_SPLIT_DRAWS = 200
-
-
-def _first_draw(n: int, seed: int) -> np.ndarray:
-    """Half of ``n`` blocks drawn as training blocks by one seeded permutation: a draw per block,
-    not parity, since a periodic test (ISA steps every few seconds, a square wave) would otherwise
-    put every transient in one half."""
-    return np.random.default_rng(seed).permutation(np.arange(n) % 2) == 0
-
-
-def balanced_split(held: np.ndarray, seed: int) -> np.ndarray:
-    """Which blocks are training blocks: half of them, by a seeded pseudo-random draw that holds
-    every rare regime in both halves.
-
-    Parameters
-    ----------
-    held : bool array (blocks, regimes): the regimes (:data:`REGIMES`) each block holds samples of.
-    seed : seed of the draws.
-
-    Returns
-    -------
-    bool array (blocks,): True for a training block.
-
-    Notes
-    -----
-    The first draw is :func:`_first_draw`'s.  It is made again (the same generator, its next
-    permutation) until every regime held by 2 to ``_RARE_BLOCKS`` blocks has at least a
-    third of its blocks (rounded up) in each half; after ``_SPLIT_DRAWS`` draws the most even one
-    is kept.  Without it the held-out half may hold too little of an effect to test it, or the
-    training half too little to fit it: unseen 149 #2 (a slip jump on ramps) had 3 of its 4
-    breakaway blocks held out and named nothing at 15 times the noise.  Where the first draw is
-    even already it is kept.
-    """
-    held = np.asarray(held, bool)
-    rng = np.random.default_rng(seed)
-    half = np.arange(held.shape[0]) % 2
-    n = held.sum(axis=0)
-    rare = (n >= 2) & (n <= _RARE_BLOCKS)
-    need, cols = np.ceil(n[rare] / 3), held[:, rare].astype(int)
-    best, best_short = None, np.inf
-    for _ in range(_SPLIT_DRAWS):
-        split = rng.permutation(half) == 0
-        k = split.astype(int) @ cols
-        short = float(np.sum(np.maximum(need - k, 0) + np.maximum(need - (n[rare] - k), 0)))
-        if short == 0:
-            return split
-        if short < best_short:
-            best, best_short = split, short
-    return best
-
-
-def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2, split_seed: int = _SPLIT_SEED,
-            balanced: bool = False) -> Prepared:
+def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2, split_seed: int = _SPLIT_SEED) -> Prepared:
     """Check a record (:func:`models.identification.check_record`) and prepare it; ``split_seed``
-    draws which blocks are training and which held out (:class:`ReconcileConfig`, ``split_check``),
-    by one seeded draw per block or, with ``balanced``, by :func:`balanced_split`."""
+    draws which blocks are training and which held out (:class:`ReconcileConfig`, ``split_check``)."""
     dt = check_record(data)
     x = np.asarray(data.x, float)
     p = np.asarray(data.p, float)
@@ -597,9 +536,9 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2, split_seed
     lab = regimes(x, ps, dt)
     t = np.asarray(data.t, float)
     block = ((t - t[0]) // block_s).astype(int)
-    held = np.zeros((block[-1] + 1, len(REGIMES)), bool)
-    held[block, lab] = True
-    split = balanced_split(held, split_seed) if balanced else _first_draw(held.shape[0], split_seed)
+    # training / held-out by a fixed pseudo-random draw per block, not by parity: a periodic test
+    # (ISA steps every few seconds, a square wave) would otherwise put every transient in one half
+    split = np.random.default_rng(split_seed).permutation(np.arange(block[-1] + 1) % 2) == 0
     state, vl = motion_state(x, dt)
     moving = state != 0
     speed = np.abs(vl)
@@ -1965,9 +1904,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     """The search on one draw of the training / held-out blocks; also whether a first step's passing
     single effects were all weak (each left the model at twice the noise or more with more than half
     of its excess), where ``weak_pairs`` runs the look-ahead pairs beside them (see :func:`_search`)."""
-    recs = [prepare(data, _block_seconds(data, cfg), cfg.sa, split_seed, cfg.balanced_split)] + (
-        [prepare(signature, _block_seconds(signature, cfg), cfg.sa, split_seed, cfg.balanced_split)]
-        if signature is not None else [])
+    recs = [prepare(data, _block_seconds(data, cfg), cfg.sa, split_seed)] + (
+        [prepare(signature, _block_seconds(signature, cfg), cfg.sa, split_seed)] if signature is not None else [])
     dv = 0.01 * max(r.speed_max for r in recs)  # DV: 1 % of the largest speed (section 3)
     # the record's slow sliding speeds (10th percentile of the Appendix-A speed while moving)
     v_slow = min(float(np.percentile(np.abs(r.xd[r.state != 0]), 10)) if np.any(r.state != 0) else 0.0 for r in recs)

@@ -21,7 +21,6 @@ from models.reconcile import (
     _THREAD_MAP,
     ReconcileConfig,
     _alternatives,
-    balanced_split,
     backward_eliminate,
     _fit,
     _fold_mask,
@@ -382,47 +381,6 @@ def test_split_check_runs_the_search_on_other_draws_of_the_held_out_blocks():
     assert set(r.effects) <= set(r.split_named) and all(1 <= k <= 3 for k in r.split_named.values())
     assert "dead_time 3/3" in r.message and r.as_dict()["split_check"] == {"draws": 3, "named": r.split_named}
     assert one.split_draws == 1 and one.split_named == {} and "draws of the held-out" not in one.message
-
-
-def test_a_balanced_split_holds_every_rare_regime_in_both_halves():
-    # planted: 80 blocks; regime 0 in 4 blocks, regime 1 in 7, regime 2 in 2, regime 3 in every
-    # block, regime 4 in one block only (it cannot be in both halves and is left alone)
-    held = np.zeros((80, 5), bool)
-    held[[3, 4, 5, 6], 0] = True
-    held[[10, 20, 30, 40, 50, 60, 70], 1] = True
-    held[[77, 78], 2] = True
-    held[:, 3] = True
-    held[12, 4] = True
-    for seed in range(30):
-        split = balanced_split(held, seed)
-        assert split.sum() == 40  # half of the blocks train, as before
-        for col, n in ((0, 4), (1, 7), (2, 2)):
-            k = int(split[held[:, col]].sum())
-            assert min(k, n - k) >= -(-n // 3)  # at least a third (rounded up) in each half
-    # a record whose first draw is even keeps it: the draw made before the rule
-    common = np.ones((80, 1), bool)
-    first = np.random.default_rng(8).permutation(np.arange(80) % 2) == 0
-    assert np.array_equal(balanced_split(common, 8), first)
-    # where no draw can be even (three regimes in blocks {0, 1}, {0, 2}, {1, 2}: two halves cannot
-    # split all three pairs) the most even draw is kept: half and half, two of the pairs split
-    clash = np.zeros((6, 3), bool)
-    for col, pair in enumerate(((0, 1), (0, 2), (1, 2))):
-        clash[list(pair), col] = True
-    split = balanced_split(clash, 8)
-    assert split.sum() == 3 and sum(split[i] != split[j] for i, j in ((0, 1), (0, 2), (1, 2))) == 2
-
-
-def test_the_balanced_split_is_off_by_default_and_changes_only_which_blocks_train():
-    rec = hidden_record(PRESETS["low"].replace(tau_p=0.0), SHORT, {"slip_jump": (1.3,)}, seed=5)
-    data = ValveData(rec.t, rec.p, rec.x, "short")
-    plain, bal = prepare(data, 0.5), prepare(data, 0.5, balanced=True)
-    first = np.random.default_rng(8).permutation(np.arange(plain.block[-1] + 1) % 2) == 0
-    assert np.array_equal(plain.train, first[plain.block])  # the default: the one seeded draw
-    assert np.array_equal(plain.labels, bal.labels) and np.array_equal(plain.block, bal.block)
-    held = np.zeros((plain.block[-1] + 1, len(REGIMES)), bool)
-    held[plain.block, plain.labels] = True
-    assert np.array_equal(bal.train, balanced_split(held, 8)[bal.block])
-    assert not ReconcileConfig().balanced_split
 
 
 def test_split_check_draws_never_repeat_the_results_draw():

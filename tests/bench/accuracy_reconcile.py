@@ -19,8 +19,7 @@ Run: ``.venv/bin/python -m pytest -q -m bench -s tests/bench/accuracy_reconcile.
 (``LOOPWATCH_BENCH_WORKERS`` processes, default 2; ``LOOPWATCH_BENCH_QUICK=1`` for a smoke run;
 ``LOOPWATCH_RECONCILE_INDEP_SEEDS``: the independent draws, default ``20261122,7``;
 ``LOOPWATCH_RECONCILE_INDEP_SUB``: sub-steps per sample of the independent simulator, default 32 —
-4 reproduces the reports before session 5; ``LOOPWATCH_RECONCILE_BALANCED=1``: the balanced split,
-``ReconcileConfig.balanced_split``).
+4 reproduces the reports before session 5).
 
 Chosen records from the command line: ``python -m tests.bench.accuracy_reconcile SPEC... [--json OUT]
 [--against OLD]`` (:func:`main`); a path ending in ``.gz`` is read and written through gzip.
@@ -56,9 +55,7 @@ WORKERS = int(os.environ.get("LOOPWATCH_BENCH_WORKERS", "2"))
 INDEP_SEEDS = [int(s) for s in os.environ.get("LOOPWATCH_RECONCILE_INDEP_SEEDS", "20261122,7").split(",")]
 # sub-steps per 1 ms sample of the independent simulator (see indep_record)
 INDEP_SUB = int(os.environ.get("LOOPWATCH_RECONCILE_INDEP_SUB", "32"))
-INDEP_SUB_MAX = 1024
-# LOOPWATCH_RECONCILE_BALANCED=1: every run, truth ratio and visibility with ReconcileConfig.balanced_split
-BALANCED = os.environ.get("LOOPWATCH_RECONCILE_BALANCED") == "1"  # indep_record stops doubling its sub-steps at this many or more
+INDEP_SUB_MAX = 1024  # indep_record stops doubling its sub-steps at this many or more
 
 # ----------------------------------------------------------------------------- excitations
 
@@ -348,8 +345,8 @@ def truth_ratio(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> floa
     and its pressure filter come to the simulator that made the record (1 = within the noise)."""
     from models import reconcile as rc
 
-    cfg = ReconcileConfig(sa=_valve(case)["sa"], balanced_split=BALANCED)
-    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa, balanced=cfg.balanced_split)
+    cfg = ReconcileConfig(sa=_valve(case)["sa"])
+    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
     vals, _ = truth_values(case, cfg)
     e = rc._residuals(vals, [rec], cfg, 0.01 * rec.speed_max)[0]
     return math.sqrt(float(np.mean(e**2))) / rec.sigma_x
@@ -366,8 +363,8 @@ def visibility(case: dict, t: np.ndarray, p: np.ndarray, x: np.ndarray) -> dict[
     one-to-one onto the workflow's (:func:`truth_values`), so this uses its private fit."""
     from models import reconcile as rc
 
-    cfg = ReconcileConfig(sa=_valve(case)["sa"], balanced_split=BALANCED)
-    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa, balanced=cfg.balanced_split)
+    cfg = ReconcileConfig(sa=_valve(case)["sa"])
+    rec = rc.prepare(ValveData(t, p, x, "case"), 0.5, cfg.sa)
     dv = 0.01 * rec.speed_max
     out = {}
     for gone in case["hidden"]:
@@ -396,8 +393,7 @@ def run_case(case: dict, global_search: bool = False) -> dict:
     t0 = time.perf_counter()
     t, p, x, sa = make_record(case)
     try:
-        r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa, global_search=global_search,
-                                                                                  balanced_split=BALANCED))
+        r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa, global_search=global_search))
         out = dict(effects=r.effects, base=r.baseline.rmse, final=r.final.rmse, noise=r.noise_floor,
                    heldout=r.final.heldout_rmse, pressure_floor=list(r.pressure_floor_draws), message=r.message,
                    step_params=[s.params for s in r.steps], second_search=r.second_search, error="",
