@@ -261,24 +261,13 @@ def test_an_earlier_effect_that_a_later_one_refitted_stands_in_for_is_taken_out(
     # before session 44 it was named first)
     data, cfg = _unseen("177:7")
     r = reconcile(data, config=cfg)
-    assert r.effects == ["actuator_lag"]
+    # a knife edge after it: with OpenBLAS's SkylakeX kernels the search stops at the lag; with its
+    # Haswell kernels (what it picks on an AMD EPYC of family 26) it adds a Stribeck curve of 1.2 N
+    # over F_c = 557 N (a 6 nm jump) at the same 1.01 times the noise (ACCURACY.md, issue 8, session 54)
+    assert r.effects in (["actuator_lag"], ["actuator_lag", "stribeck"])
     assert r.steps[0].params["tau_s"] == pytest.approx(0.2136, rel=0.1)
     assert "dead_time taken out of the final model: the later effects, refitted without it" in r.message
     assert r.final.heldout_rmse < 1.1 * r.noise_floor
-
-
-def test_a_misfit_only_the_held_out_blocks_show_is_said_to_lie_there():
-    # unseen 187 #2: a slip jump (F_s/F_c 1.38) on ramps; its planted truth reads 1.02 x the noise.
-    # Without the slip jump the truth fits the training blocks at 1.00 x and the held-out ones at
-    # 13 x (both blocks with a breakaway are held out): the fits on the training blocks cannot
-    # identify the jump.  Where nothing is named, the result must say that the misfit lies in the
-    # held-out half and not only that the model misses the data
-    data, cfg = _unseen("187:1")
-    r = reconcile(data, config=cfg)
-    assert r.effects in ([], ["slip_jump"])
-    if not r.effects:
-        assert "no candidate effect passes the held-out test; the model still misses the data" in r.message
-        assert "it fits the training blocks it was fitted on (1.0 × the noise): what it misses lies in the held-out half" in r.message
 
 
 @pytest.mark.slow
@@ -618,6 +607,70 @@ def test_a_search_that_ends_within_the_noise_is_not_run_again():
     assert "run again" not in r.message and r.second_search == ""
 
 
+def test_a_search_whose_training_blocks_showed_too_little_is_run_again_on_the_swapped_blocks():
+    # unseen 187 #2 (independent simulator): a slip jump of 1.38 on ramps.  Three of the four blocks
+    # with a reversal are held out; the baseline fits the training blocks at the noise (1.0 x) and
+    # misses the held-out ones by 10 x, the slip jump fitted on the training blocks comes out at size
+    # zero and the search names nothing at 6.5 x the noise on the whole record.  With the halves
+    # swapped, the planted slip jump is found and the record fits within the noise
+    from tests.bench.accuracy_reconcile import select
+
+    data, cfg = _unseen("187:1")
+    ((_, case),) = select("187:1")
+    first = reconcile(data, config=replace(cfg, swap_search=False))
+    assert first.effects == [] and first.held_out_misfit and first.final.rmse >= 2 * first.noise_floor
+    assert first.swap_search == ""
+    # where nothing is named, the result says that the misfit lies in the held-out half and not only
+    # that the model misses the data (session 44)
+    assert "no candidate effect passes the held-out test; the model still misses the data" in first.message
+    assert "it fits the training blocks it was fitted on (1.0 × the noise): what it misses lies in the held-out half" in first.message
+    r = reconcile(data, config=cfg)
+    assert r.effects == ["slip_jump"] and r.swap_search == "kept" and r.as_dict()["swap_search"] == "kept"
+    p = r.steps[0].params
+    assert p["Fs"] / p["Fc"] == pytest.approx(case["hidden"]["slip_jump"][0], rel=0.1)
+    assert r.final.rmse < 1.2 * r.noise_floor
+    assert "training and held-out blocks swapped" in r.message and " kept against the first search's" in r.message
+
+
+def test_the_swapped_search_runs_only_where_the_held_out_half_holds_the_misfit_and_is_kept_if_better(monkeypatch):
+    """Unit test of the choice alone (``_search``), the draws replaced by fixed results."""
+    import models.reconcile as rc
+
+    def result(effects, rmse, message, held_out_misfit=True):  # the final model's RMSE on the whole record
+        steps = tuple(rc.Step(e, {}, rmse, rmse, {}, "", []) for e in effects)
+        base = 9.0 if effects else rmse
+        return rc.Reconciliation(baseline=rc.Step("baseline", {}, base, base, {}, "", []), steps=steps, rounds=(),
+                                 noise_floor=1.0, regime_share={}, regime_samples={}, xcorr={}, records=(),
+                                 message=message, held_out_misfit=held_out_misfit)
+
+    def case(first, swapped, **cfg):
+        calls = []
+
+        def fake(data, signature, cfg, seed, swap=False):
+            calls.append(swap)
+            return swapped if swap else first
+
+        monkeypatch.setattr(rc, "_search_draw", fake)
+        return rc._search(None, None, ReconcileConfig(**cfg), 8), calls
+
+    high, better, worse = result([], 6.0, "high"), result(["a"], 1.1, "better"), result(["b"], 7.0, "worse")
+    assert case(result([], 1.9, "low"), better) == (result([], 1.9, "low"), [False])  # within twice the noise
+    plain = result([], 6.0, "plain", held_out_misfit=False)  # the misfit not in the held-out half alone
+    assert case(plain, better) == (plain, [False])
+    assert case(high, better, swap_search=False) == (high, [False])
+    r, calls = case(high, better)
+    assert calls == [False, True] and r.effects == ["a"] and r.message.startswith("better")
+    assert r.swap_search == "kept" and "a (1.1 × the noise on the whole record) kept against" in r.message
+    r, calls = case(high, worse)
+    assert calls == [False, True] and r.effects == [] and r.message.startswith("high") and r.swap_search == "not kept"
+    assert "b (7.0 × the noise on the whole record) not kept" in r.message
+    # either run reports the better baseline of the two (the same model fitted to the same record)
+    r, _ = case(high, replace(better, baseline=rc.Step("baseline", {}, 5.0, 5.0, {}, "", [])))
+    assert r.baseline.rmse == 5.0 and r.effects == ["a"]
+    r, _ = case(high, replace(worse, baseline=rc.Step("baseline", {}, 5.0, 5.0, {}, "", [])))
+    assert r.baseline.rmse == 5.0 and r.effects == []
+
+
 def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_blocks_better(monkeypatch):
     """Unit test of the choice alone (``_search``), the searches replaced by fixed results."""
     import models.reconcile as rc
@@ -631,7 +684,7 @@ def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_bl
     def case(first, weak, second):
         calls = []
 
-        def fake(data, signature, cfg, pool, seed, weak_pairs=False):
+        def fake(data, signature, cfg, pool, seed, weak_pairs=False, swap=False):
             calls.append(weak_pairs)
             return (second if weak_pairs else first), weak
 

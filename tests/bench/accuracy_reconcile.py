@@ -396,7 +396,8 @@ def run_case(case: dict, global_search: bool = False) -> dict:
         r = reconcile(ValveData(t, p, x, "case"), config=ReconcileConfig(sa=sa, global_search=global_search))
         out = dict(effects=r.effects, base=r.baseline.rmse, final=r.final.rmse, noise=r.noise_floor,
                    heldout=r.final.heldout_rmse, pressure_floor=list(r.pressure_floor_draws), message=r.message,
-                   step_params=[s.params for s in r.steps], second_search=r.second_search, error="",
+                   step_params=[s.params for s in r.steps], second_search=r.second_search, swap_search=r.swap_search,
+                   held_out_misfit=r.held_out_misfit, error="",
                    # candidates where the first fold at the noise decided the cross-fit (none: the run is
                    # what it was before session 51)
                    first_fold_decided=[c.effect for rnd in r.rounds for c in rnd if not math.isnan(c.overruled_pooled_rmse)])

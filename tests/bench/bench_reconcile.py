@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> None:
         dt, cpu = time.perf_counter() - t0, _cpu() - c0
         print(f"{tag} ({draw} #{int(idx) + 1}, {case['exc']}, hidden {'+'.join(case['hidden']) or 'none'}): {t.size} "
               f"samples, {dt:.1f} s wall ({'under' if dt < 60 else 'OVER'} 60 s), {cpu:.1f} s CPU, {fits.value} fits, {len(calls)} Stribeck "
-              f"searches ({sum(calls):.1f} s), second search {r.second_search or 'not run'}, effects {r.effects}", flush=True)
+              f"searches ({sum(calls):.1f} s), second search {r.second_search or 'not run'}, swapped search {r.swap_search or 'not run'}, effects {r.effects}", flush=True)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,10 @@ ran them (main at 25b88f9), then the fresh draws 195 and 197 as session 48 ran t
 657fc88), then the fresh draws 199 and 201 as session 49 ran them (main at 2b5effc), then the 179
 records session 51 re-ran after the first fold at the noise decides the cross-fit (every single and pair
 above the noise whose final model read 1.5 times the noise or more held out, and 32 others), then the
-fresh draws 203 and 205 as session 51 ran them (main at 0c5b6d5), and
+fresh draws 203 and 205 as session 51 ran them (main at 0c5b6d5), then the 22 records on which
+session 54's search on the swapped blocks can run (``ReconcileConfig.swap_search``: every stored
+record whose search stopped with nothing passing, a model fitting its training blocks and not the
+held-out ones, and the whole record at twice the noise or more), as it names them, and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -44,7 +47,8 @@ RESULTS = Path(__file__).parent / "results"
 MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44.json.gz",
         RESULTS / "reconcile_refit230_s44.json.gz", RESULTS / "reconcile_191-193_s46.json.gz",
         RESULTS / "reconcile_195-197_s48.json.gz", RESULTS / "reconcile_199-201_s49.json.gz",
-        RESULTS / "reconcile_firstfold179_s51.json.gz", RESULTS / "reconcile_203-205_s51.json.gz")
+        RESULTS / "reconcile_firstfold179_s51.json.gz", RESULTS / "reconcile_203-205_s51.json.gz",
+        RESULTS / "reconcile_swap22_s54.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
