@@ -82,7 +82,9 @@ missing effect explains it, and how much does adding it shrink the gap.
    effect finer than the records resolve (a lag or dead time under one sample, a deadband or a
    friction jump under the position noise: :func:`_resolution`) and every one the held-out BIC
    no longer favours beside the later ones (one at a time, nothing refitted: the backward half
-   of a stepwise selection); the final model is refitted without them.
+   of a stepwise selection); the final model is refitted without them.  A Stribeck curve left in the
+   final model with v_s below DV is named as the slip jump it nests where that fits the held-out
+   blocks as well (``nested_slip_jump``).
 4. **The gap**: RMSE before/after each step on the whole record and per regime, and the final
    model's pressure-noise floor (:func:`pressure_floor`): what the recorded pressure's noise
    alone moves its stem by, so that a misfit can be read against what even a right model would
