@@ -2746,6 +2746,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     # fits took back to (nearly) nothing, leaves the final model (unseen 157 #3: a deadband refitted
     # to 0 m and a dead time of 12 µs beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
     _progress("weighing the effects again")
+    def refit_steps(first: int, note: str) -> None:
+        """The steps from ``first`` on refitted on the whole record from the final model ``cur`` (each
+        but the last started there and fitted on the training blocks first), ``note`` added to their evidence."""
+        for m in range(first, len(accepted)):
+            names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
+            start_m = {n: x for n, x in cur.items() if n in names_m or n in ("dv", "nb")}
+            steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note,
+                                         start=m < len(accepted) - 1), indistinguishable_from=steps[m].indistinguishable_from)
+
     cur, gone = backward_eliminate(cur, accepted, recs, cfg, dv, base_rule)
     if gone:
         first = min(accepted.index(e) for e, _ in gone)
@@ -2761,12 +2770,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             message += (f"; without them the model still misses the data: held-out RMSE {ratio * sigma * 1e6:.2f} µm "
                         f"({ratio:.1f} × the noise)")
             misses = True
-        note = "; " + ", ".join(e for e, _ in gone) + " taken out after the search"
-        for m in range(min(first, len(accepted) - 1), len(accepted)) if accepted else ():  # from the first gone (or the new last)
-            names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
-            start_m = {n: x for n, x in cur.items() if n in names_m or n in ("dv", "nb")}
-            steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note,
-                                         start=m < len(accepted) - 1), indistinguishable_from=steps[m].indistinguishable_from)
+        if accepted:  # from the first gone (or the new last)
+            refit_steps(min(first, len(accepted) - 1), "; " + ", ".join(e for e, _ in gone) + " taken out after the search")
     j_st = accepted.index("stribeck") if "stribeck" in accepted and "slip_jump" not in accepted else -1
     if cfg.nested_slip_jump and j_st >= 0 and steps[-1].params.get("vs", math.inf) < steps[-1].params["dv"]:
         # the final model's Stribeck curve falls to F_c (within exp(-1)) below DV, inside the stick band:
@@ -2783,12 +2788,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                    f"blocks as well or better with one parameter fewer (BIC {d_nest:+.1f} against stribeck, < 2)")
             message += why
             accepted[j_st], cur, free = "slip_jump", v_sj, free_sj
-            for m in range(j_st, len(accepted)):
-                names_m = _BASE + tuple(n for e in accepted[: m + 1] for n in _effect_names(e))
-                start_m = {n: x for n, x in cur.items() if n in names_m or n in ("dv", "nb")}
-                steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + why,
-                                             start=m < len(accepted) - 1),
-                                   indistinguishable_from=steps[m].indistinguishable_from)
+            refit_steps(j_st, why)
     if steps:
         # the baseline is reported as fitted as well as we can: started again from the final
         # model's Karnopp parameters (the effects removed); the better of the two is kept, so that
