@@ -693,7 +693,7 @@ def test_the_swapped_search_runs_only_where_the_held_out_half_holds_the_misfit_a
 
 
 def test_the_run_kept_after_a_second_search_is_the_one_that_fits_the_held_out_blocks_better(monkeypatch):
-    """Unit test of the choice alone (``_search``), the searches replaced by fixed results."""
+    """Unit test of the choice alone (``_search_draw``), the searches replaced by fixed results."""
     import models.reconcile as rc
 
     def result(effects, heldout, message):  # the whole-record RMSE of the final model: its held-out one less 1
