@@ -2742,10 +2742,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         hold_rule(cur)
         steps.append(replace(full_step(named[-1], cur, free, evidence), indistinguishable_from=tuple(alike)))
         _progress(f"added {best_c.effect} ({steps[-1].rmse / sigma:.1f} × noise)")
-    # backward elimination: an accepted effect finer than the records resolve, or that the later
-    # fits took back to (nearly) nothing, leaves the final model (unseen 157 #3: a deadband refitted
-    # to 0 m and a dead time of 12 µs beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
-    _progress("weighing the effects again")
+
     def refit_steps(first: int, note: str) -> None:
         """The steps from ``first`` on refitted on the whole record from the final model ``cur`` (each
         but the last started there and fitted on the training blocks first), ``note`` added to their evidence."""
@@ -2755,6 +2752,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             steps[m] = replace(full_step(accepted[m], start_m, names_m, steps[m].evidence + note,
                                          start=m < len(accepted) - 1), indistinguishable_from=steps[m].indistinguishable_from)
 
+    # backward elimination: an accepted effect finer than the records resolve, or that the later
+    # fits took back to (nearly) nothing, leaves the final model (unseen 157 #3: a deadband refitted
+    # to 0 m and a dead time of 12 µs beside a Stribeck friction; ACCURACY.md, issue 8, sessions 30-31)
+    _progress("weighing the effects again")
     cur, gone = backward_eliminate(cur, accepted, recs, cfg, dv, base_rule)
     if gone:
         first = min(accepted.index(e) for e, _ in gone)
