@@ -18,7 +18,10 @@ draws 207, 209, 211 and 213 as session 54 ran them (main at 1e73fad, with OPENBL
 then the 47 records session 54's nested slip jump at the end of the search can change
 (``ReconcileConfig.nested_slip_jump``: a final Stribeck curve with v_s below DV, in the kept run or
 named in the message of a run not kept), as it names them, then the fresh draws 215 and 217 as
-session 54 ran them on its final code (main at 5814426, OPENBLAS_CORETYPE=SkylakeX), and
+session 54 ran them on its final code (main at 5814426, OPENBLAS_CORETYPE=SkylakeX), then the 62
+records on which session 55's search of the final Stribeck model on the whole record can run
+(``ReconcileConfig.final_search``: a final model with a Stribeck curve at twice the noise or more on the
+whole record), as it names them (OPENBLAS_CORETYPE=SkylakeX), and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -55,7 +58,7 @@ MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44
         RESULTS / "reconcile_firstfold179_s51.json.gz", RESULTS / "reconcile_203-205_s51.json.gz",
         RESULTS / "reconcile_swap22_s54.json.gz", RESULTS / "reconcile_207-209_s54.json.gz",
         RESULTS / "reconcile_211-213_s54.json.gz", RESULTS / "reconcile_nested47_s54.json.gz",
-        RESULTS / "reconcile_215-217_s54.json.gz")
+        RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
