@@ -21,7 +21,8 @@ named in the message of a run not kept), as it names them, then the fresh draws 
 session 54 ran them on its final code (main at 5814426, OPENBLAS_CORETYPE=SkylakeX), then the 62
 records on which session 55's search of the final Stribeck model on the whole record can run
 (``ReconcileConfig.final_search``: a final model with a Stribeck curve at twice the noise or more on the
-whole record), as it names them (OPENBLAS_CORETYPE=SkylakeX), and
+whole record), as it names them (OPENBLAS_CORETYPE=SkylakeX), then the fresh draws 219 and 221 as session 55
+ran them on its final code (main at ed6b802, OPENBLAS_CORETYPE=SkylakeX), and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -58,13 +59,15 @@ MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44
         RESULTS / "reconcile_firstfold179_s51.json.gz", RESULTS / "reconcile_203-205_s51.json.gz",
         RESULTS / "reconcile_swap22_s54.json.gz", RESULTS / "reconcile_207-209_s54.json.gz",
         RESULTS / "reconcile_211-213_s54.json.gz", RESULTS / "reconcile_nested47_s54.json.gz",
-        RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz")
+        RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz",
+        RESULTS / "reconcile_219-221_s55.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
           RESULTS / "truth_203-205_s51.json.gz", RESULTS / "truth_207-209_s54.json.gz",
-          RESULTS / "truth_211-213_s54.json.gz", RESULTS / "truth_215-217_s54.json.gz")
-NUMBERED = "numbered draws 119-217"
+          RESULTS / "truth_211-213_s54.json.gz", RESULTS / "truth_215-217_s54.json.gz",
+          RESULTS / "truth_219-221_s55.json.gz")
+NUMBERED = "numbered draws 119-221"
 
 
 def load(path: Path) -> list | dict:
