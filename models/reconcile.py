@@ -905,7 +905,7 @@ class _Fit:
 def _fold_mask(r: Prepared, fold: str) -> np.ndarray:
     """Samples of one half of the blocks: ``"train"`` (the training blocks) or ``"test"`` (the
     held-out blocks; the second fold of the cross-fit fits on them and scores the training blocks);
-    ``"all"``: every sample (the final model's search, ``ReconcileConfig.final_search``)."""
+    ``"all"``: every sample (the fits and searches on the whole record)."""
     if fold not in ("train", "test", "all"):
         raise ModelConfigError(f"fold {fold!r}: 'train', 'test' or 'all'")
     return r.train.copy() if fold == "train" else ~r.train if fold == "test" else np.ones_like(r.train)
@@ -946,7 +946,7 @@ def _fit_once(vals0: dict[str, float], free: tuple[str, ...], recs: list[Prepare
     # (the short fits of the multi-start use every 16 ms)
     masks = []  # the samples of each record that enter, as indices (cheaper than a mask per evaluation)
     for r in recs:
-        m = np.ones(r.x.size, bool) if use == "all" else _fold_mask(r, use)
+        m = _fold_mask(r, use)
         m[np.arange(r.x.size) % max(1, int(round(stride_s / r.dt))) != 0] = False
         masks.append(np.flatnonzero(m))
     scale_res = max(min(r.sigma_x for r in recs), 1e-9)
@@ -1885,7 +1885,10 @@ def reconcile(
             for i in range(cfg.split_check):
                 if cfg.split_check > 1:
                     _progress(f"draw {i + 1} of {cfg.split_check}")
-                runs.append(_final_search(_search(data, signature, cfg, _split_seed(i)), cfg))
+                runs.append(_search(data, signature, cfg, _split_seed(i)))
+            # the first draw's result is the one reported (the others count the effects named, which
+            # the final search does not change): only its final model is searched
+            runs[0] = _final_search(runs[0], cfg)
     finally:
         _PROGRESS.reset(token)
     first = runs[0]
