@@ -364,6 +364,8 @@ class ReconcileConfig:
     stribeck_search: bool = True
     stribeck_maxiter: int = 50
     stribeck_base: bool = True
+    pair_timing_search: bool = True
+    pair_timing_maxiter: int = 150
     fold_start: bool = True
     retry_pairs: bool = True
     swap_search: bool = True
@@ -772,7 +774,8 @@ def _global_fit(effects: tuple[str, ...], recs: list[Prepared], cfg: ReconcileCo
 
 
 def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
-                     rule: dict[str, float], fold: str = "train", timing: bool = True) -> tuple[dict[str, float], float]:
+                     rule: dict[str, float], fold: str = "train", timing: bool = True, add: str = "",
+                     maxiter: int | None = None) -> tuple[dict[str, float], float]:
     """Stribeck friction fitted on ``fold`` (:func:`_fold_mask`) by a global search about a slip jump's fit.
 
     A slip jump is Stribeck friction with ``v_s → 0`` (eq. (2) of the issue's Stribeck curve), so
@@ -797,7 +800,7 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     vals : the parameters found, with the stick rule ``rule`` (``nb``, ``dv``).
     cost : their coarse mean-square residual on ``fold`` over the noise variance.
     """
-    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing)
+    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing, add, maxiter)
     if memo is not None and key in memo:  # made before on this draw (_search)
         return dict(memo[key][0]), memo[key][1]
     k, fs = slip["k"], slip["fc"] + slip.get("dfs", 0.0)
@@ -806,6 +809,9 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
               (slip["bias"] - fs / k, slip["bias"] + fs / k), (math.log10(vmax) - 3.0, math.log10(vmax))]
     path = [n for n in ("tau", "theta") if timing and slip.get(n, 0.0) > 0.0]  # an accepted lag / dead time, searched too
     bounds += [(0.0, 2.0 * slip[n]) for n in path]
+    if add:  # a lag or dead time the model lacks, searched over its physical range (as _global_fit's)
+        path.append(_effect_names(add)[0])
+        bounds.append((0.0, {"actuator_lag": 1.0, "dead_time": 0.3}[add]))
     recs = [_decimate(r, cfg.global_coarse) for r in recs]
     masks = [np.flatnonzero(_fold_mask(r, fold)) for r in recs]
     noise = sum(m.size * r.sigma_x ** 2 for r, m in zip(recs, masks))
@@ -823,10 +829,10 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
 
     outs = []
     with ThreadPoolExecutor(max(1, cfg.threads)) as ex:
-        for nd in sorted({6, len(bounds)}):  # the lag / dead time held, then searched: the better kept
-            held = np.array([slip[n] for n in path])[nd - 6:]
+        for nd in sorted({len(bounds) if add else 6, len(bounds)}):  # the lag / dead time held, then searched: the better kept
+            held = np.array([slip.get(n, 0.0) for n in path])[nd - 6:]
             out = differential_evolution(lambda z, h: cost(np.r_[z, h]), bounds[:nd], args=(held,), popsize=15,
-                                         maxiter=cfg.stribeck_maxiter, tol=0.0, polish=False, seed=0, init="sobol",
+                                         maxiter=maxiter or cfg.stribeck_maxiter, tol=0.0, polish=False, seed=0, init="sobol",
                                          updating="deferred", workers=ex.map, callback=at_noise)
             outs.append((float(out.fun), np.r_[out.x, held]))
     fun, x = min(outs, key=lambda o: o[0])
@@ -2306,6 +2312,16 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         fits = searched_stribeck[key]
         return min(fits + [_Fit(v_st, fold_sse(v_st, fold))], key=lambda f: fold_sse(f.vals, fold))
 
+    def timing_searched(timed: str, v_about: dict[str, float], fold: str) -> tuple[dict[str, float], ...]:
+        """The Stribeck curve and the lag or dead time ``timed`` searched together about ``v_about`` on
+        ``fold`` (:func:`_stribeck_search`, the Stribeck candidate's stick rule): the pair's extra start
+        (``ReconcileConfig.pair_timing_search``); none where ``timed`` is ""."""
+        if not timed:
+            return ()
+        rule = friction_rule.get("stribeck") or (_stick_rules(cfg, v_about.get("dv", dv))[0] if cfg.stick_band > 0
+                                                 else {"dv": v_about.get("dv", dv)})
+        return (_stribeck_search(v_about, recs, cfg, dv, rule, fold, add=timed, maxiter=cfg.pair_timing_maxiter)[0],)
+
     def n_params(eff: str, replaces: str, with_: str) -> int:
         return _n_params(eff) + (_n_params(with_) - _n_params(replaces) if replaces else 0)
 
@@ -2591,16 +2607,20 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             single_bic = {c.effect: c.delta_bic for c, _, _ in cands}
             pcands = []
             for a, b in pairs:
-                fit = pair_fit(a, b, cur, cur_sse, "train", memo)
+                timed = ({a, b} - {"stribeck"}).pop() if "stribeck" in (a, b) else ""
+                timed = timed if (timed in ("actuator_lag", "dead_time") and cfg.pair_timing_search and cfg.stribeck_search
+                                  and not passing and excess >= cfg.global_excess) else ""
+                fit = pair_fit(a, b, cur, cur_sse, "train", memo, timing_searched(timed, cur, "train"))
                 if fit is None:
                     continue
                 p_add = n_params(a, "", "") + n_params(b, "", "")
 
-                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add, v1=fit.vals):
+                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add, v1=fit.vals, timed=timed):
                     # the second fold also starts from the first fold's fit, as a single candidate's does
                     # (fold_start; unseen 135 #25, slip jump + dead time: the first fold's pair fit
                     # at 3.3 x the noise, the second fold's multi-start alone at 20 x)
-                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2, (v1,) if cfg.fold_start else ())
+                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2,
+                                    ((v1,) if cfg.fold_start else ()) + timing_searched(timed, cur2, "test"))
                     return None if fit2 is None else (fit2.vals, b, p_add)
 
                 first, second = (a, b) if single_bic[a] >= single_bic[b] else (b, a)
