@@ -2609,7 +2609,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             for a, b in pairs:
                 timed = ({a, b} - {"stribeck"}).pop() if "stribeck" in (a, b) else ""
                 timed = timed if (timed in ("actuator_lag", "dead_time") and cfg.pair_timing_search and cfg.stribeck_search
-                                  and not passing and excess >= cfg.global_excess) else ""
+                                  and not passing and ratio >= 2.0) else ""
                 fit = pair_fit(a, b, cur, cur_sse, "train", memo, timing_searched(timed, cur, "train"))
                 if fit is None:
                     continue
