@@ -244,6 +244,18 @@ class ReconcileConfig:
         of the 23 unseen draws (ACCURACY.md and BENCHMARKS.md, issue 8, sessions 27–28): it ran
         on 52; above-noise Stribeck singles 33 → 37 of 45 named first, no other verdict changed;
         the slowest 60 s record 42 s (41 s without it).
+    pair_timing_search : where no single effect passes the first step and the model misses the held-out
+        blocks by twice the noise or more, the look-ahead pairs of the Stribeck curve with a lag and with a
+        dead time also start from a global search of the pair about the current model
+        (:func:`_stribeck_search` with ``τ`` searched from 0 to 1 s or ``θ`` from 0 to 0.3 s, the Stribeck
+        candidate's stick rule, ``pair_timing_maxiter`` generations), on each fold of the cross-fit.  A
+        Stribeck curve and a lag trade off on ramps: from the force-balance starts every local fit of the
+        pair ends near the baseline (unseen 161 #26: the pair's fit held out 10.8 × the noise with a lag of
+        0.04 s against the planted 0.19 s; searched, 1.2 × on the whole record, with ``k``, ``F_s``, ``v_s``
+        and ``τ`` within 3.5 % of the planted ones, ``F_c`` 2 % and ``F_v`` 12 %).  Measured in ACCURACY.md
+        (issue 8, session 56).
+    pair_timing_maxiter : generations of that search (it stops earlier once the fold fits within 1.1
+        times the noise); at 50 (``stribeck_maxiter``) it ends far from the planted curve on 161 #26.
     fold_start : in the two-fold cross-fit, each candidate's fit on the held-out blocks also starts
         from its fit on the training blocks, as the current model's does (without it, the second
         fold's multi-start alone may end in another basin, and the pooled test fails a candidate
@@ -394,7 +406,7 @@ class ReconcileConfig:
         if not (isinstance(self.split_check, int) and self.split_check >= 1):
             raise ModelConfigError(f"ReconcileConfig.split_check = {self.split_check!r}: must be an integer >= 1 "
                                    "(the draws of the training / held-out blocks the search runs on)")
-        for name in ("global_maxiter", "global_coarse", "global_polish", "stribeck_maxiter"):
+        for name in ("global_maxiter", "global_coarse", "global_polish", "stribeck_maxiter", "pair_timing_maxiter"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise ModelConfigError(f"ReconcileConfig.{name} = {v!r}: must be an integer >= 1 (the global search "

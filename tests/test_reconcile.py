@@ -1305,3 +1305,35 @@ def test_stribeck_search_about_a_slip_jump_fit_also_searches_the_accepted_lag():
     found, _ = _stribeck_search(slip, [rec], cfg, dv, {"nb": 3.0, "dv": dv})
     assert 0.0 <= found["tau"] <= 0.06  # within the searched range
     assert found["tau"] == pytest.approx(0.05, rel=0.2)
+
+
+def test_a_stribeck_curve_and_a_lag_the_model_lacks_are_found_together_by_the_pair_search():
+    # unseen 161 #26 (independent simulator): Stribeck friction (F_s/F_c 1.31, v_s 4.6 mm/s) behind an
+    # actuator lag of 0.19 s, on ramps.  From a Karnopp fit, the pair searched together
+    # (ReconcileConfig.pair_timing_search) comes back to the planted lag and curve on the training
+    # blocks; the same search without the lag cannot fit them
+    import models.reconcile as rc
+    from tests.bench.accuracy_reconcile import select
+
+    data, cfg = _unseen("161:25")
+    ((_, case),) = select("161:25")
+    valve, (ratio, vs), (tau,) = case["valve"], case["hidden"]["stribeck"], case["hidden"]["actuator_lag"]
+    rec = rc.prepare(data, 0.5, cfg.sa)
+    recs, dv = [rec], 0.01 * rec.speed_max
+    rule = {"nb": cfg.stick_band, "dv": dv}
+    base = rc._fit({**rc._initial_baseline(recs, cfg), **rule}, rc._BASE, recs, cfg, dv, use="train").vals
+
+    def train_rmse(v):
+        e = rc._residuals(v, recs, cfg, dv)[0][rec.train]
+        return float(np.sqrt(np.mean(e**2))) / rec.sigma_x
+
+    assert train_rmse(base) > 5.0  # the baseline misses the training blocks
+    found, _ = rc._stribeck_search(base, recs, cfg, dv, rule, "train", add="actuator_lag", maxiter=cfg.pair_timing_maxiter)
+    fit = rc._fit(found, rc._BASE + ("dfs", "vs", "tau"), recs, cfg, dv, use="train").vals
+    assert train_rmse(fit) < 1.3
+    assert fit["tau"] == pytest.approx(tau, rel=0.05)
+    assert fit["k"] == pytest.approx(valve["k"], rel=0.02)
+    assert fit["fc"] + fit["dfs"] == pytest.approx(ratio * valve["fc"], rel=0.05)
+    assert fit["vs"] == pytest.approx(vs, rel=0.15)
+    alone, _ = rc._stribeck_search(base, recs, cfg, dv, rule, "train", maxiter=cfg.pair_timing_maxiter)
+    assert train_rmse(alone) > 3.0
