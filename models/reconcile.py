@@ -248,7 +248,8 @@ class ReconcileConfig:
         blocks by twice the noise or more, the look-ahead pairs of the Stribeck curve with a lag and with a
         dead time also start from a global search of the pair about the current model
         (:func:`_stribeck_search` with ``τ`` searched from 0 to 1 s or ``θ`` from 0 to 0.3 s, the Stribeck
-        candidate's stick rule, ``pair_timing_maxiter`` generations), on each fold of the cross-fit.  A
+        candidate's stick rule, ``pair_timing_maxiter`` generations) on the training blocks; the second
+        fold of the cross-fit starts from the first fold's fit (``fold_start``), as every pair's does.  A
         Stribeck curve and a lag trade off on ramps: from the force-balance starts every local fit of the
         pair ends near the baseline (unseen 161 #26: the pair's fit held out 10.8 × the noise with a lag of
         0.04 s against the planted 0.19 s; searched, 1.2 × on the whole record, with ``k``, ``F_s``, ``v_s``
@@ -2627,12 +2628,12 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                     continue
                 p_add = n_params(a, "", "") + n_params(b, "", "")
 
-                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add, v1=fit.vals, timed=timed):
+                def refit_pair(cur2, cur2_sse, a=a, b=b, p_add=p_add, v1=fit.vals):
                     # the second fold also starts from the first fold's fit, as a single candidate's does
                     # (fold_start; unseen 135 #25, slip jump + dead time: the first fold's pair fit
                     # at 3.3 x the noise, the second fold's multi-start alone at 20 x)
                     fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2,
-                                    ((v1,) if cfg.fold_start else ()) + timing_searched(timed, cur2, "test"))
+                                    (v1,) if cfg.fold_start else ())
                     return None if fit2 is None else (fit2.vals, b, p_add)
 
                 first, second = (a, b) if single_bic[a] >= single_bic[b] else (b, a)
