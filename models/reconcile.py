@@ -251,10 +251,11 @@ class ReconcileConfig:
         candidate's stick rule, ``pair_timing_maxiter`` generations) on the training blocks; the second
         fold of the cross-fit starts from the first fold's fit (``fold_start``), as every pair's does.  A
         Stribeck curve and a lag trade off on ramps: from the force-balance starts every local fit of the
-        pair ends near the baseline (unseen 161 #26: the pair's fit held out 10.8 × the noise with a lag of
-        0.04 s against the planted 0.19 s; searched, 1.2 × on the whole record, with ``k``, ``F_s``, ``v_s``
-        and ``τ`` within 3.5 % of the planted ones, ``F_c`` 2 % and ``F_v`` 12 %).  Measured in ACCURACY.md
-        (issue 8, session 56).
+        pair ends in another basin (unseen 161 #26: the pair's fit held out 16.7 × the noise, worse than the
+        baseline's 13.2 ×, with a lag of 0.10 s against the planted 0.19 s, and nothing was named; searched,
+        the pair holds out 1.3 × and the final model reads 1.2 × on the whole record, with ``k``, ``F_s``,
+        ``v_s`` and ``τ`` within 3.5 % of the planted ones, ``F_c`` 2 % and ``F_v`` 12 %).  Measured in
+        ACCURACY.md (issue 8, session 56).
     pair_timing_maxiter : generations of that search (it stops earlier once the fold fits within 1.1
         times the noise); at 50 (``stribeck_maxiter``) it ends far from the planted curve on 161 #26.
     fold_start : in the two-fold cross-fit, each candidate's fit on the held-out blocks also starts
