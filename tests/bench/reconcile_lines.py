@@ -22,7 +22,11 @@ session 54 ran them on its final code (main at 5814426, OPENBLAS_CORETYPE=Skylak
 records on which session 55's search of the final Stribeck model on the whole record can run
 (``ReconcileConfig.final_search``: a final model with a Stribeck curve at twice the noise or more on the
 whole record), as it names them (OPENBLAS_CORETYPE=SkylakeX), then the fresh draws 219 and 221 as session 55
-ran them on its final code (main at ed6b802, OPENBLAS_CORETYPE=SkylakeX), and
+ran them on its final code (main at ed6b802, OPENBLAS_CORETYPE=SkylakeX), then the 56 records on which
+session 56's search of the Stribeck + lag / dead time pairs can run (``ReconcileConfig.pair_timing_search``:
+no single passing the first step with the model at twice the noise or more held out; found by a probe of
+every stored record with two effects or more or a swapped search, and by the held-out error of those naming
+none), as it names them (OPENBLAS_CORETYPE=SkylakeX), and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -60,7 +64,7 @@ MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44
         RESULTS / "reconcile_swap22_s54.json.gz", RESULTS / "reconcile_207-209_s54.json.gz",
         RESULTS / "reconcile_211-213_s54.json.gz", RESULTS / "reconcile_nested47_s54.json.gz",
         RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz",
-        RESULTS / "reconcile_219-221_s55.json.gz")
+        RESULTS / "reconcile_219-221_s55.json.gz", RESULTS / "reconcile_pairtiming56_s56.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
