@@ -805,6 +805,9 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     searched); the search with the extra dimension alone reaches the curve less often at the same
     generations (own record 49 lost its Stribeck; ACCURACY.md, issue 8, session 42).  ``timing``
     False: the lag or dead time held only (the final model's search, ``ReconcileConfig.final_search``).
+    ``add``: a lag (``"actuator_lag"``, ``τ`` from 0 to 1 s) or dead time (``"dead_time"``, ``θ`` from 0 to
+    0.3 s) that ``slip`` lacks, searched with the curve in one search (the pair's start,
+    ``ReconcileConfig.pair_timing_search``).  ``maxiter``: its generations (default ``cfg.stribeck_maxiter``).
     The Stribeck curve's negative damping makes the output error rough in ``F_c`` and ``F_s``: from
     a slip jump's fit with ``F_c`` 24 % above the truth the local fits end at 4–10 times the noise
     where the truth fits within 1.5 times (unseen 123 #6, 131 #4; ACCURACY.md, issue 8, session 24).
@@ -843,7 +846,8 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
 
     outs = []
     with ThreadPoolExecutor(max(1, cfg.threads)) as ex:
-        for nd in sorted({len(bounds) if add else 6, len(bounds)}):  # the lag / dead time held, then searched: the better kept
+        # an accepted lag / dead time held, then searched: the better kept (an added one is always searched)
+        for nd in sorted({len(bounds) if add else 6, len(bounds)}):
             held = np.array([slip.get(n, 0.0) for n in path])[nd - 6:]
             out = differential_evolution(lambda z, h: cost(np.r_[z, h]), bounds[:nd], args=(held,), popsize=15,
                                          maxiter=maxiter or cfg.stribeck_maxiter, tol=0.0, polish=False, seed=0, init="sobol",
@@ -2329,7 +2333,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
     def timing_searched(timed: str, v_about: dict[str, float], fold: str) -> tuple[dict[str, float], ...]:
         """The Stribeck curve and the lag or dead time ``timed`` searched together about ``v_about`` on
         ``fold`` (:func:`_stribeck_search`, the Stribeck candidate's stick rule): the pair's extra start
-        (``ReconcileConfig.pair_timing_search``); none where ``timed`` is ""."""
+        (``ReconcileConfig.pair_timing_search``); none where ``timed`` is "" or the search's lag or dead
+        time is below one sampling period (:func:`_resolution`)."""
         if not timed:
             return ()
         rule = friction_rule.get("stribeck") or (_stick_rules(cfg, v_about.get("dv", dv))[0] if cfg.stick_band > 0
@@ -2638,8 +2643,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
                     # the second fold also starts from the first fold's fit, as a single candidate's does
                     # (fold_start; unseen 135 #25, slip jump + dead time: the first fold's pair fit
                     # at 3.3 x the noise, the second fold's multi-start alone at 20 x)
-                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2,
-                                    (v1,) if cfg.fold_start else ())
+                    fit2 = pair_fit(a, b, cur2, cur2_sse, "test", memo2, (v1,) if cfg.fold_start else ())
                     return None if fit2 is None else (fit2.vals, b, p_add)
 
                 first, second = (a, b) if single_bic[a] >= single_bic[b] else (b, a)
