@@ -1331,9 +1331,12 @@ def test_a_stribeck_curve_and_a_lag_the_model_lacks_are_found_together_by_the_pa
     found, _ = rc._stribeck_search(base, recs, cfg, dv, rule, "train", add="actuator_lag", maxiter=cfg.pair_timing_maxiter)
     fit = rc._fit(found, rc._BASE + ("dfs", "vs", "tau"), recs, cfg, dv, use="train").vals
     assert train_rmse(fit) < 1.3
-    assert fit["tau"] == pytest.approx(tau, rel=0.05)
+    # the lag, the spring and F_s come back; v_s is loosely held by the training half (4.4 mm/s with
+    # OpenBLAS's SkylakeX kernels, 3.0 mm/s with its Haswell ones on the same machine; planted 4.6), and
+    # the lag moves with it (0.194 / 0.181 s)
+    assert fit["tau"] == pytest.approx(tau, rel=0.1)
     assert fit["k"] == pytest.approx(valve["k"], rel=0.02)
     assert fit["fc"] + fit["dfs"] == pytest.approx(ratio * valve["fc"], rel=0.05)
-    assert fit["vs"] == pytest.approx(vs, rel=0.15)
+    assert 0.5 * vs < fit["vs"] < 1.5 * vs
     alone, _ = rc._stribeck_search(base, recs, cfg, dv, rule, "train", maxiter=cfg.pair_timing_maxiter)
     assert train_rmse(alone) > 3.0
