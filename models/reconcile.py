@@ -619,6 +619,7 @@ def prepare(data: ValveData, block_s: float = 0.5, sa: float = SA_M2, split_seed
 # --------------------------------------------------------------------------- fitting
 
 _BASE = ("k", "fc", "fv", "bias")
+_TIMING_MAX = {"actuator_lag": 1.0, "dead_time": 0.3}  # the global searches' range of τ and θ, s
 _SHORT_NFEV = 6  # evaluation budget of a short multi-start fit
 _SWAP_SCREEN = 4  # grid starts of a swap model fitted (the lowest errors at the start)
 _MAX_REFITS = 2  # times the current model may be refitted from a candidate's basin in one search
@@ -753,7 +754,8 @@ def _global_fit(effects: tuple[str, ...], recs: list[Prepared], cfg: ReconcileCo
     names = [("lk", math.log10(k0) - 2.0, math.log10(k0) + 0.5), ("fc", 0.0, 0.5), ("lT", -3.0, 0.5), ("b", -2.0, 2.0)]
     for e in effects:
         names += {"slip_jump": [("dfs", 0.0, 2.0)], "stribeck": [("dfs", 0.0, 2.0), ("lvs", math.log10(vmax) - 3.0, math.log10(vmax))],
-                  "actuator_lag": [("tau", 0.0, 1.0)], "dead_time": [("theta", 0.0, 0.3)],
+                  "actuator_lag": [("tau", 0.0, _TIMING_MAX["actuator_lag"])],
+                  "dead_time": [("theta", 0.0, _TIMING_MAX["dead_time"])],
                   "deadband": [("deadband", 0.0, 0.5 * span)]}[e]
     recs = [_decimate(r, cfg.global_coarse) for r in recs]
     masks = [np.flatnonzero(r.train) for r in recs]
@@ -828,7 +830,7 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     bounds += [(0.0, 2.0 * slip[n]) for n in path]
     if add:  # a lag or dead time the model lacks, searched over its physical range (as _global_fit's)
         path.append(_effect_names(add)[0])
-        bounds.append((0.0, {"actuator_lag": 1.0, "dead_time": 0.3}[add]))
+        bounds.append((0.0, _TIMING_MAX[add]))
     recs = [_decimate(r, cfg.global_coarse) for r in recs]
     masks = [np.flatnonzero(_fold_mask(r, fold)) for r in recs]
     noise = sum(m.size * r.sigma_x ** 2 for r, m in zip(recs, masks))
@@ -2630,10 +2632,10 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             _progress(f"round {len(rounds)}: {len(pairs)} pairs of effects together")
             single_bic = {c.effect: c.delta_bic for c, _, _ in cands}
             pcands = []
+            search_timing = cfg.pair_timing_search and cfg.stribeck_search and not passing and ratio >= 2.0
             for a, b in pairs:
-                timed = ({a, b} - {"stribeck"}).pop() if "stribeck" in (a, b) else ""
-                timed = timed if (timed in ("actuator_lag", "dead_time") and cfg.pair_timing_search and cfg.stribeck_search
-                                  and not passing and ratio >= 2.0) else ""
+                timed = ({a, b} - {"stribeck"}).pop() if search_timing and "stribeck" in (a, b) else ""
+                timed = timed if timed in _TIMING_MAX else ""
                 fit = pair_fit(a, b, cur, cur_sse, "train", memo, timing_searched(timed, cur, "train"))
                 if fit is None:
                     continue
