@@ -258,6 +258,14 @@ class ReconcileConfig:
         ACCURACY.md (issue 8, session 56).
     pair_timing_maxiter : generations of that search (it stops earlier once the fold fits within 1.1
         times the noise); at 50 (``stribeck_maxiter``) it ends far from the planted curve on 161 #26.
+    stribeck_timing_search : beside an accepted Stribeck curve, with the model at twice the noise or more
+        held out, the lag and the dead time candidates also start from the same search (the curve searched
+        again about the current model with ``τ`` or ``θ``, ``pair_timing_maxiter`` generations, on the
+        training blocks; the second fold starts from the first fold's fit).  The curve fitted without the
+        lag it trades off with is the wrong curve, and from it the lag's local fits find a lag of the wrong
+        size or none (unseen 219 #26, Stribeck + lag on ramps: named the curve and a deadband at 10.7 ×
+        the noise; with the search, the curve and a lag of 0.20 s, planted 0.20 s, at 1.4 ×).  Measured in
+        ACCURACY.md (issue 8, session 57).
     fold_start : in the two-fold cross-fit, each candidate's fit on the held-out blocks also starts
         from its fit on the training blocks, as the current model's does (without it, the second
         fold's multi-start alone may end in another basin, and the pooled test fails a candidate
@@ -380,6 +388,7 @@ class ReconcileConfig:
     stribeck_base: bool = True
     pair_timing_search: bool = True
     pair_timing_maxiter: int = 150
+    stribeck_timing_search: bool = True
     fold_start: bool = True
     retry_pairs: bool = True
     swap_search: bool = True
@@ -2487,8 +2496,14 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         cands = []
         memo: dict = {}  # this round's fits on the training blocks (plain candidates and swaps)
         memo2: dict = {}  # and on the held-out blocks (the second fold)
+        # beside an accepted Stribeck curve, with the model at twice the noise or more held out, the lag and the
+        # dead time also start from the curve searched again with them (timing_searched; stribeck_timing_search)
+        timing_beside = cfg.stribeck_timing_search and cfg.stribeck_search and "stribeck" in accepted and ratio >= 2.0
         for eff in todo:  # every candidate's own fit first: the swaps start from them
-            plain_fit(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [], memo)
+            extra = [carry[eff]] if eff in carry else []
+            if timing_beside and eff in _TIMING_MAX:
+                extra += timing_searched(eff, cur, "train")
+            plain_fit(eff, cur, cur_sse, "train", extra, memo)
         def assess(eff: str, label: str, vals: dict[str, float], with_: str, replaces: str, p_add: int,
                    t_crit: float, refit_test: Callable) -> Candidate:
             """The held-out tests of a candidate fitted on the training blocks (``vals``; ``with_``
