@@ -258,6 +258,17 @@ class ReconcileConfig:
         ACCURACY.md (issue 8, session 56).
     pair_timing_maxiter : generations of that search (it stops earlier once the fold fits within 1.1
         times the noise); at 50 (``stribeck_maxiter``) it ends far from the planted curve on 161 #26.
+    stribeck_timing_search : in the round right after a Stribeck curve is accepted, with the model still at twice
+        the noise or more held out, the lag candidate also starts from the curve and the lag searched together
+        about the current model (:func:`_stribeck_search` with ``τ`` from 0 to 1 s, ``pair_timing_maxiter``
+        generations, on the training blocks at ``stribeck_timing_coarse``; the second fold starts from the first
+        fold's fit).  A curve fitted without the lag it trades off with is another curve, and from it the lag's
+        local fits end far from the planted lag (unseen 219 #26, Stribeck + lag on ramps: the curve, then a
+        deadband, at 10.7 × the noise; with the search, the curve and a lag of 0.20 s, planted 0.20 s, at 1.8 ×).
+        Measured in ACCURACY.md (issue 8, session 57).
+    stribeck_timing_coarse : the samples per block of that search's coarse record (:func:`_decimate`; the other
+        searches use ``global_coarse``).  At 4 it costs the 60 s line's slowest record (159 #4, where it runs in
+        a search that is not kept) 53 → 62 s; at 8, 55 s.
     fold_start : in the two-fold cross-fit, each candidate's fit on the held-out blocks also starts
         from its fit on the training blocks, as the current model's does (without it, the second
         fold's multi-start alone may end in another basin, and the pooled test fails a candidate
@@ -380,6 +391,8 @@ class ReconcileConfig:
     stribeck_base: bool = True
     pair_timing_search: bool = True
     pair_timing_maxiter: int = 150
+    stribeck_timing_search: bool = True
+    stribeck_timing_coarse: int = 8
     fold_start: bool = True
     retry_pairs: bool = True
     swap_search: bool = True
@@ -408,7 +421,8 @@ class ReconcileConfig:
         if not (isinstance(self.split_check, int) and self.split_check >= 1):
             raise ModelConfigError(f"ReconcileConfig.split_check = {self.split_check!r}: must be an integer >= 1 "
                                    "(the draws of the training / held-out blocks the search runs on)")
-        for name in ("global_maxiter", "global_coarse", "global_polish", "stribeck_maxiter", "pair_timing_maxiter"):
+        for name in ("global_maxiter", "global_coarse", "global_polish", "stribeck_maxiter", "pair_timing_maxiter",
+                     "stribeck_timing_coarse"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise ModelConfigError(f"ReconcileConfig.{name} = {v!r}: must be an integer >= 1 (the global search "
@@ -819,7 +833,7 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     vals : the parameters found, with the stick rule ``rule`` (``nb``, ``dv``).
     cost : their coarse mean-square residual on ``fold`` over the noise variance.
     """
-    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing, add, maxiter)
+    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing, add, maxiter, cfg.global_coarse)
     if memo is not None and key in memo:  # made before on this draw (_search)
         return dict(memo[key][0]), memo[key][1]
     k, fs = slip["k"], slip["fc"] + slip.get("dfs", 0.0)
@@ -2332,16 +2346,19 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         fits = searched_stribeck[key]
         return min(fits + [_Fit(v_st, fold_sse(v_st, fold))], key=lambda f: fold_sse(f.vals, fold))
 
-    def timing_searched(timed: str, v_about: dict[str, float], fold: str) -> tuple[dict[str, float], ...]:
+    def timing_searched(timed: str, v_about: dict[str, float], fold: str,
+                        coarse: int = cfg.global_coarse) -> tuple[dict[str, float], ...]:
         """The Stribeck curve and the lag or dead time ``timed`` searched together about ``v_about`` on
-        ``fold`` (:func:`_stribeck_search`, the Stribeck candidate's stick rule): the pair's extra start
-        (``ReconcileConfig.pair_timing_search``); none where ``timed`` is "" or the search's lag or dead
-        time is below one sampling period (:func:`_resolution`)."""
+        ``fold`` (:func:`_stribeck_search` on the record in blocks of ``coarse`` samples, the Stribeck
+        candidate's stick rule): the pair's extra start (``ReconcileConfig.pair_timing_search``), or the lag's
+        beside an accepted curve (``stribeck_timing_search``); none where ``timed`` is "" or the search's lag or
+        dead time is below one sampling period (:func:`_resolution`)."""
         if not timed:
             return ()
         rule = friction_rule.get("stribeck") or (_stick_rules(cfg, v_about.get("dv", dv))[0] if cfg.stick_band > 0
                                                  else {"dv": v_about.get("dv", dv)})
-        v = _stribeck_search(v_about, recs, cfg, dv, rule, fold, add=timed, maxiter=cfg.pair_timing_maxiter)[0]
+        v = _stribeck_search(v_about, recs, replace(cfg, global_coarse=coarse), dv, rule, fold, add=timed,
+                             maxiter=cfg.pair_timing_maxiter)[0]
         # a search that finds no lag or dead time the record resolves found no pair: its start would
         # only bring a single (the Stribeck curve) into the pairs' contest (unseen 133 #3, a slip jump:
         # the searched pair won the first step with a lag of 0.02 ms and the slip jump ended at 8.6 x
@@ -2487,8 +2504,15 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         cands = []
         memo: dict = {}  # this round's fits on the training blocks (plain candidates and swaps)
         memo2: dict = {}  # and on the held-out blocks (the second fold)
+        # right after a Stribeck curve is accepted, with the model at twice the noise or more held out, the lag
+        # also starts from the curve searched again with it (timing_searched; stribeck_timing_search)
+        timing_beside = (cfg.stribeck_timing_search and cfg.stribeck_search and accepted[-1:] == ["stribeck"]
+                         and ratio >= 2.0)
         for eff in todo:  # every candidate's own fit first: the swaps start from them
-            plain_fit(eff, cur, cur_sse, "train", [carry[eff]] if eff in carry else [], memo)
+            extra = [carry[eff]] if eff in carry else []
+            if timing_beside and eff == "actuator_lag":
+                extra += timing_searched(eff, cur, "train", cfg.stribeck_timing_coarse)
+            plain_fit(eff, cur, cur_sse, "train", extra, memo)
         def assess(eff: str, label: str, vals: dict[str, float], with_: str, replaces: str, p_add: int,
                    t_crit: float, refit_test: Callable) -> Candidate:
             """The held-out tests of a candidate fitted on the training blocks (``vals``; ``with_``
