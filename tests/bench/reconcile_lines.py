@@ -27,7 +27,9 @@ session 56's search of the Stribeck + lag / dead time pairs can run (``Reconcile
 no single passing the first step with the model at twice the noise or more held out; found by a probe of
 every stored record with two effects or more or a swapped search, and by the held-out error of those naming
 none), as it names them (OPENBLAS_CORETYPE=SkylakeX), then the fresh draws 223 and 225 as session 57 ran them
-(main at 83f6a66, on an Intel Xeon whose own OpenBLAS kernel is SkylakeX), and
+(main at 83f6a66, on an Intel Xeon whose own OpenBLAS kernel is SkylakeX), then the 43 records on which session
+57's search of the lag beside an accepted Stribeck curve changed the result in a broader first form or was aimed at
+(``ReconcileConfig.stribeck_timing_search``), as it names them (SkylakeX), and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -66,7 +68,7 @@ MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44
         RESULTS / "reconcile_211-213_s54.json.gz", RESULTS / "reconcile_nested47_s54.json.gz",
         RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz",
         RESULTS / "reconcile_219-221_s55.json.gz", RESULTS / "reconcile_pairtiming56_s56.json.gz",
-        RESULTS / "reconcile_223-225_s57.json.gz")
+        RESULTS / "reconcile_223-225_s57.json.gz", RESULTS / "reconcile_stribecktiming43_s57.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
