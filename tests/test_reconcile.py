@@ -1308,10 +1308,10 @@ def test_stribeck_search_about_a_slip_jump_fit_also_searches_the_accepted_lag():
 
 
 def _stribeck_lag_record(tag: str):
-    """Unseen record ``tag`` with a hidden Stribeck curve and lag, prepared as the workflow does: its case, the
-    records, DV, the stick rule with the band, the Karnopp fit of the training blocks, the training-block RMSE of a
-    model over the noise, and a check that a fit came back to the planted lag, spring, F_s and v_s (within 10 %, 2 %,
-    5 % and half)."""
+    """Unseen record ``tag`` with a hidden Stribeck curve and lag, prepared as the workflow does: its configuration,
+    the records, DV, the stick rule with the band, the Karnopp fit of the training blocks, the training-block RMSE of
+    a model over the noise, and a check that a fit came back to the planted lag, spring, F_s and v_s (within 10 %,
+    2 %, 5 % and half)."""
     import models.reconcile as rc
     from tests.bench.accuracy_reconcile import select
 
