@@ -805,7 +805,7 @@ def _global_fit(effects: tuple[str, ...], recs: list[Prepared], cfg: ReconcileCo
 
 def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
                      rule: dict[str, float], fold: str = "train", timing: bool = True, add: str = "",
-                     maxiter: int | None = None) -> tuple[dict[str, float], float]:
+                     maxiter: int | None = None, coarse: int | None = None) -> tuple[dict[str, float], float]:
     """Stribeck friction fitted on ``fold`` (:func:`_fold_mask`) by a global search about a slip jump's fit.
 
     A slip jump is Stribeck friction with ``v_s → 0`` (eq. (2) of the issue's Stribeck curve), so
@@ -823,7 +823,8 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     False: the lag or dead time held only (the final model's search, ``ReconcileConfig.final_search``).
     ``add``: a lag (``"actuator_lag"``, ``τ`` from 0 to 1 s) or dead time (``"dead_time"``, ``θ`` from 0 to
     0.3 s) that ``slip`` lacks, searched with the curve in one search (the pair's start,
-    ``ReconcileConfig.pair_timing_search``).  ``maxiter``: its generations (default ``cfg.stribeck_maxiter``).
+    ``ReconcileConfig.pair_timing_search``).  ``maxiter``: its generations (default ``cfg.stribeck_maxiter``);
+    ``coarse``: the record's block length in samples (default ``cfg.global_coarse``).
     The Stribeck curve's negative damping makes the output error rough in ``F_c`` and ``F_s``: from
     a slip jump's fit with ``F_c`` 24 % above the truth the local fits end at 4–10 times the noise
     where the truth fits within 1.5 times (unseen 123 #6, 131 #4; ACCURACY.md, issue 8, session 24).
@@ -833,7 +834,8 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     vals : the parameters found, with the stick rule ``rule`` (``nb``, ``dv``).
     cost : their coarse mean-square residual on ``fold`` over the noise variance.
     """
-    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing, add, maxiter, cfg.global_coarse)
+    coarse = coarse or cfg.global_coarse
+    memo, key = _MEMO.get(), _memo_key("stribeck", slip, rule, fold, timing, add, maxiter, coarse)
     if memo is not None and key in memo:  # made before on this draw (_search)
         return dict(memo[key][0]), memo[key][1]
     k, fs = slip["k"], slip["fc"] + slip.get("dfs", 0.0)
@@ -845,7 +847,7 @@ def _stribeck_search(slip: dict[str, float], recs: list[Prepared], cfg: Reconcil
     if add:  # a lag or dead time the model lacks, searched over its physical range (as _global_fit's)
         path.append(_effect_names(add)[0])
         bounds.append((0.0, _TIMING_MAX[add]))
-    recs = [_decimate(r, cfg.global_coarse) for r in recs]
+    recs = [_decimate(r, coarse) for r in recs]
     masks = [np.flatnonzero(_fold_mask(r, fold)) for r in recs]
     noise = sum(m.size * r.sigma_x ** 2 for r, m in zip(recs, masks))
 
@@ -1380,9 +1382,12 @@ def _joint_starts(effects: tuple[str, ...], recs: list[Prepared], cfg: Reconcile
 
 
 def _stick_rules(cfg: ReconcileConfig, dv: float) -> list[dict[str, float]]:
-    """The two stick rules a model may choose between (``ReconcileConfig.stick_band`` > 0): the
-    band, and eq. (2) as written without it; both with the limit velocity ``dv``."""
-    return [{"nb": cfg.stick_band, "dv": dv}, {"nb": 0.0, "dv": dv}]
+    """The stick rules a model may choose between, each with the limit velocity ``dv``: with a stick
+    band (``ReconcileConfig.stick_band`` > 0) the band first, then eq. (2) as written without it;
+    without one, eq. (2) alone."""
+    if cfg.stick_band > 0:
+        return [{"nb": cfg.stick_band, "dv": dv}, {"nb": 0.0, "dv": dv}]
+    return [{"dv": dv}]
 
 
 def _grid(effect: str, vals: dict[str, float], recs: list[Prepared], cfg: ReconcileConfig, dv: float,
@@ -2311,10 +2316,8 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             fr = [friction_rule[e] for e in (a, b) if e in friction_rule]
             if fr or not {a, b} & {"slip_jump", "stribeck"}:
                 rules = fr or [{n: base[n] for n in ("nb", "dv") if n in base}]
-            elif cfg.stick_band > 0:
-                rules = _stick_rules(cfg, base.get("dv", dv))
             else:
-                rules = [{"dv": base.get("dv", dv)}]
+                rules = _stick_rules(cfg, base.get("dv", dv))
             names = _effect_names(a) + _effect_names(b)
             starts = [{**base, **g} for g in _joint_starts((a, b), recs, cfg, rules)] + list(extra)
             shorts = sorted(short_fits(starts, free + names, fold), key=lambda f: f.sse_train)
@@ -2336,7 +2339,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         about the slip jump's fit ``v_sj`` (:func:`_stribeck_search`, with both stick rules, each
         result fitted again at the full rate), both fitted on ``fold``."""
         names = free + _effect_names("stribeck")
-        rules = _stick_rules(cfg, v_sj.get("dv", dv)) if cfg.stick_band > 0 else [{"dv": v_sj.get("dv", dv)}]
+        rules = _stick_rules(cfg, v_sj.get("dv", dv))
         key = stribeck_key(v_sj, fold)
         if stribeck_spent(key):
             return _Fit(v_st, fold_sse(v_st, fold))
@@ -2355,10 +2358,9 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         dead time is below one sampling period (:func:`_resolution`)."""
         if not timed:
             return ()
-        rule = friction_rule.get("stribeck") or (_stick_rules(cfg, v_about.get("dv", dv))[0] if cfg.stick_band > 0
-                                                 else {"dv": v_about.get("dv", dv)})
-        v = _stribeck_search(v_about, recs, replace(cfg, global_coarse=coarse), dv, rule, fold, add=timed,
-                             maxiter=cfg.pair_timing_maxiter)[0]
+        rule = friction_rule.get("stribeck") or _stick_rules(cfg, v_about.get("dv", dv))[0]
+        v = _stribeck_search(v_about, recs, cfg, dv, rule, fold, add=timed, maxiter=cfg.pair_timing_maxiter,
+                             coarse=coarse)[0]
         # a search that finds no lag or dead time the record resolves found no pair: its start would
         # only bring a single (the Stribeck curve) into the pairs' contest (unseen 133 #3, a slip jump:
         # the searched pair won the first step with a lag of 0.02 ms and the slip jump ended at 8.6 x
@@ -2687,7 +2689,7 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
             # ramps: the truth fits at the noise, every local start ends at 2-15 times it)
             rescues += 1
             _progress(f"round {len(rounds)}: global search")
-            rule = {"nb": cfg.stick_band, "dv": dv} if cfg.stick_band > 0 else {"dv": dv}
+            rule = _stick_rules(cfg, dv)[0]
             for eff in todo:  # a second search after a refit repeats the same sets: each set once
                 effs = tuple(accepted) + (eff,)
                 if effs not in searched_sets:
