@@ -2350,12 +2350,13 @@ def _reconcile(data: ValveData, signature: ValveData | None, cfg: ReconcileConfi
         return min(fits + [_Fit(v_st, fold_sse(v_st, fold))], key=lambda f: fold_sse(f.vals, fold))
 
     def timing_searched(timed: str, v_about: dict[str, float], fold: str,
-                        coarse: int = cfg.global_coarse) -> tuple[dict[str, float], ...]:
+                        coarse: int | None = None) -> tuple[dict[str, float], ...]:
         """The Stribeck curve and the lag or dead time ``timed`` searched together about ``v_about`` on
-        ``fold`` (:func:`_stribeck_search` on the record in blocks of ``coarse`` samples, the Stribeck
-        candidate's stick rule): the pair's extra start (``ReconcileConfig.pair_timing_search``), or the lag's
-        beside an accepted curve (``stribeck_timing_search``); none where ``timed`` is "" or the search's lag or
-        dead time is below one sampling period (:func:`_resolution`)."""
+        ``fold`` (:func:`_stribeck_search` on the record in blocks of ``coarse`` samples, by default
+        ``global_coarse``, with the Stribeck candidate's stick rule): the pair's extra start
+        (``ReconcileConfig.pair_timing_search``), or the lag's beside an accepted curve
+        (``stribeck_timing_search``); none where ``timed`` is "" or the search's lag or dead time is below
+        one sampling period (:func:`_resolution`)."""
         if not timed:
             return ()
         rule = friction_rule.get("stribeck") or _stick_rules(cfg, v_about.get("dv", dv))[0]

@@ -1370,8 +1370,8 @@ def test_beside_a_stribeck_curve_fitted_without_its_lag_the_search_finds_the_lag
     assert train_rmse(curve) > 5.0
     local = rc._fit({**curve, "tau": 0.05}, names + ("tau",), recs, cfg, dv, use="train").vals
     assert train_rmse(local) > 5.0
-    coarse = replace(cfg, global_coarse=cfg.stribeck_timing_coarse)  # the search on the record in blocks of 8 samples
-    found, _ = rc._stribeck_search(curve, recs, coarse, dv, rule, "train", add="actuator_lag", maxiter=cfg.pair_timing_maxiter)
+    found, _ = rc._stribeck_search(curve, recs, cfg, dv, rule, "train", add="actuator_lag", maxiter=cfg.pair_timing_maxiter,
+                                   coarse=cfg.stribeck_timing_coarse)  # the search on the record in blocks of 8 samples
     fit = rc._fit(found, names + ("tau",), recs, cfg, dv, use="train").vals
     assert train_rmse(fit) < 2.5  # 1.85 x the noise (SkylakeX kernels); the curve without the lag above 5 x
     planted(fit)
