@@ -31,7 +31,8 @@ none), as it names them (OPENBLAS_CORETYPE=SkylakeX), then the fresh draws 223 a
 57's search of the lag beside an accepted Stribeck curve changed the result in a broader first form or was aimed at
 (``ReconcileConfig.stribeck_timing_search``), as it names them (SkylakeX), then the fresh draws 227 and 229 as
 session 58 ran them (main at 1feec9c with a log of each better-basin refit added and nothing else changed; Xeon,
-SkylakeX), then 183 #26 re-run on main at 1feec9c (its stored result was older than the code), and
+SkylakeX), then 183 #26 re-run on main at 1feec9c (its stored result was older than the code), then the fresh
+draws 231 and 233 as session 60 ran them (main at a5c031d; Xeon, SkylakeX), and
 :data:`TRUTHS` each record's truth ratio (``accuracy_reconcile --truth``: the planted truth simulated
 by the workflow from the smoothed recorded pressure, RMSE over the position noise).
 Files given on the command line replace the records of the same tags, in order: the lines of a
@@ -71,15 +72,16 @@ MAIN = (RESULTS / "reconcile_main_s43.json.gz", RESULTS / "reconcile_187-189_s44
         RESULTS / "reconcile_215-217_s54.json.gz", RESULTS / "reconcile_final62_s55.json.gz",
         RESULTS / "reconcile_219-221_s55.json.gz", RESULTS / "reconcile_pairtiming56_s56.json.gz",
         RESULTS / "reconcile_223-225_s57.json.gz", RESULTS / "reconcile_stribecktiming43_s57.json.gz",
-        RESULTS / "reconcile_227-229_s58.json.gz", RESULTS / "reconcile_rerun183_s58.json.gz")
+        RESULTS / "reconcile_227-229_s58.json.gz", RESULTS / "reconcile_rerun183_s58.json.gz",
+        RESULTS / "reconcile_231-233_s60.json.gz")
 TRUTHS = (RESULTS / "truth_119-185_s40.json.gz", RESULTS / "truth_x187-197_s42.json.gz",
           RESULTS / "truth_187-189_s44.json.gz", RESULTS / "truth_191-193_s46.json.gz",
           RESULTS / "truth_195-197_s48.json.gz", RESULTS / "truth_199-201_s49.json.gz",
           RESULTS / "truth_203-205_s51.json.gz", RESULTS / "truth_207-209_s54.json.gz",
           RESULTS / "truth_211-213_s54.json.gz", RESULTS / "truth_215-217_s54.json.gz",
           RESULTS / "truth_219-221_s55.json.gz", RESULTS / "truth_223-225_s57.json.gz",
-          RESULTS / "truth_227-229_s58.json.gz")
-NUMBERED = "numbered draws 119-229"
+          RESULTS / "truth_227-229_s58.json.gz", RESULTS / "truth_231-233_s60.json.gz")
+NUMBERED = "numbered draws 119-233"
 
 
 def load(path: Path) -> list | dict:
